@@ -1,0 +1,74 @@
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+#include <tbb/global_control.h>
+
+#include <cmath>
+#include <iostream>
+#include <sstream>
+
+#include "commands.hpp"
+#include "gcmap/core/error.hpp"
+#include "gcmap/core/se3.hpp"
+
+namespace gcmap::cli {
+
+Eigen::Isometry3d parse_pose_option(const std::string& option, const std::string& text) {
+  std::istringstream ss(text);
+  double v[7];
+  for (double& x : v)
+    if (!(ss >> x) || !std::isfinite(x)) throw Error(option + ": expected \"x y z qx qy qz qw\", got \"" + text + "\"");
+  std::string extra;
+  if (ss >> extra) throw Error(option + ": expected 7 numbers, got more: \"" + text + "\"");
+  if (std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]) < 1e-6) throw Error(option + ": zero quaternion");
+  return pose_from_xyz_quat(v);
+}
+
+std::shared_ptr<void> limit_threads(int threads) {
+  if (threads < 0) throw Error("--threads: must be >= 0");
+  if (threads == 0) return nullptr;
+  return std::make_shared<tbb::global_control>(tbb::global_control::max_allowed_parallelism, threads);
+}
+
+}  // namespace gcmap::cli
+
+int main(int argc, char** argv) {
+  auto logger = spdlog::stderr_color_mt("gcmap");
+  logger->set_pattern("[%l] %v");
+  spdlog::set_default_logger(logger);
+
+  CLI::App app{"gcmap: globally consistent 3D LiDAR mapping by global matching-cost minimization"};
+  app.require_subcommand(1);
+  app.set_help_all_flag("--help-all", "Help for every sub-command");
+  gcmap::cli::Runner run;
+  gcmap::cli::add_register(app, run);
+  gcmap::cli::add_optimize(app, run);
+  gcmap::cli::add_simulate(app, run);
+  gcmap::cli::add_eval(app, run);
+  gcmap::cli::add_mme(app, run);
+  gcmap::cli::add_map(app, run);
+  gcmap::cli::add_demo(app, run);
+  gcmap::cli::add_config(app, run);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::cerr << "gcmap: " << e.what() << " (see --help)\n";
+    return 2;
+  }
+  try {
+    return run ? run() : 2;
+  } catch (const gcmap::Error& e) {
+    std::cerr << "gcmap: " << e.what() << "\n";
+    return 2;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "gcmap: out of memory\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "gcmap: " << e.what() << "\n";
+    return 2;
+  }
+}

@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Installs gcmap's dependencies from Debian 12 packages and builds it into build/.
+# Idempotent. Usage: ./scripts/setup.sh [extra cmake arguments, e.g. -DGCMAP_CUDA=OFF]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+packages=(build-essential cmake pkg-config libeigen3-dev libtbb-dev libnanoflann-dev
+  libcli11-dev libyaml-cpp-dev libspdlog-dev libgtest-dev libbenchmark-dev)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  sudo_cmd=()
+  [ "$(id -u)" -eq 0 ] || sudo_cmd=(sudo)
+  "${sudo_cmd[@]}" apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release "$@"
+cmake --build build -j "$(nproc)"

@@ -1,0 +1,87 @@
+#include "gcmap/core/gaussian_voxel_map.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
+#include "gcmap/core/error.hpp"
+
+namespace gcmap {
+
+GaussianVoxelMap::GaussianVoxelMap(double resolution)
+    : resolution_(resolution), inv_resolution_(static_cast<float>(1.0 / resolution)) {
+  if (!(resolution > 0.0) || !std::isfinite(resolution)) throw Error("voxel map resolution must be positive");
+  rehash(1024);
+}
+
+void GaussianVoxelMap::rehash(size_t capacity) {
+  slots_.assign(capacity, Slot{0, 0, 0, -1});
+  mask_ = static_cast<uint32_t>(capacity - 1);
+  for (size_t v = 0; v < coords_.size(); ++v) {
+    uint32_t slot = hash_voxel(coords_[v]) & mask_;
+    while (slots_[slot].index >= 0) slot = (slot + 1) & mask_;
+    slots_[slot] = {coords_[v].x(), coords_[v].y(), coords_[v].z(), static_cast<int32_t>(v)};
+  }
+}
+
+int GaussianVoxelMap::find_or_insert(const Eigen::Vector3i& coord) {
+  // Load factor at most 1/2 keeps probe sequences short.
+  if (2 * (coords_.size() + 1) > slots_.size()) rehash(slots_.size() * 2);
+  uint32_t slot = hash_voxel(coord) & mask_;
+  while (true) {
+    Slot& s = slots_[slot];
+    if (s.index < 0) {
+      s = {coord.x(), coord.y(), coord.z(), static_cast<int32_t>(coords_.size())};
+      coords_.push_back(coord);
+      counts_.push_back(0);
+      sum_means_.push_back(Eigen::Vector3d::Zero());
+      sum_covs_.push_back(Eigen::Matrix3d::Zero());
+      return s.index;
+    }
+    if (s.x == coord.x() && s.y == coord.y() && s.z == coord.z()) return s.index;
+    slot = (slot + 1) & mask_;
+  }
+}
+
+void GaussianVoxelMap::insert(const PointCloud& cloud, const Eigen::Isometry3d& T) {
+  if (!cloud.has_covs()) throw Error("voxel map insert: the cloud has no covariances");
+  const Eigen::Matrix3d R = T.linear();
+  const Eigen::Vector3d t = T.translation();
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3d p = R * cloud.points[i].cast<double>() + t;
+    const int v = find_or_insert(voxel_coord(p.cast<float>(), inv_resolution_));
+    counts_[v] += 1;
+    sum_means_[v] += p;
+    sum_covs_[v] += R * cloud.covs[i].cast<double>() * R.transpose();
+  }
+}
+
+void GaussianVoxelMap::finalize() {
+  means_.resize(coords_.size());
+  covs_.resize(coords_.size());
+  for (size_t v = 0; v < coords_.size(); ++v) {
+    means_[v] = (sum_means_[v] / counts_[v]).cast<float>();
+    covs_[v] = (sum_covs_[v] / counts_[v]).cast<float>();
+  }
+}
+
+size_t GaussianVoxelMap::memory_bytes() const {
+  return slots_.size() * sizeof(Slot) +
+         coords_.size() * (sizeof(Eigen::Vector3i) + sizeof(int) + sizeof(Eigen::Vector3d) + sizeof(Eigen::Matrix3d) +
+                           sizeof(Eigen::Vector3f) + sizeof(Eigen::Matrix3f));
+}
+
+double overlap(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& T) {
+  if (source.empty()) return 0.0;
+  const Eigen::Matrix3f R = T.linear().cast<float>();
+  const Eigen::Vector3f t = T.translation().cast<float>();
+  const size_t hits = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, source.size(), 2048), size_t{0},
+      [&](const tbb::blocked_range<size_t>& r, size_t acc) {
+        for (size_t i = r.begin(); i != r.end(); ++i) acc += target.lookup(R * source.points[i] + t) >= 0;
+        return acc;
+      },
+      [](size_t a, size_t b) { return a + b; });
+  return static_cast<double>(hits) / static_cast<double>(source.size());
+}
+
+}  // namespace gcmap

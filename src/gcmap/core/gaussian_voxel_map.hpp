@@ -1,0 +1,88 @@
+#pragma once
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "gcmap/core/point_cloud.hpp"
+
+namespace gcmap {
+
+// Integer voxel coordinate of a point at a given inverse resolution.
+inline Eigen::Vector3i voxel_coord(const Eigen::Vector3f& p, float inv_resolution) {
+  return Eigen::Vector3i(static_cast<int>(std::floor(p.x() * inv_resolution)),
+                         static_cast<int>(std::floor(p.y() * inv_resolution)),
+                         static_cast<int>(std::floor(p.z() * inv_resolution)));
+}
+
+inline uint32_t hash_voxel(const Eigen::Vector3i& c) {
+  uint64_t h = static_cast<uint64_t>(static_cast<uint32_t>(c.x())) * 0x9E3779B185EBCA87ull;
+  h ^= static_cast<uint64_t>(static_cast<uint32_t>(c.y())) * 0xC2B2AE3D27D4EB4Full;
+  h ^= static_cast<uint64_t>(static_cast<uint32_t>(c.z())) * 0x165667B19E3779F9ull;
+  return static_cast<uint32_t>(h ^ (h >> 29));
+}
+
+// Gaussian voxel map for VGICP. A voxel stores the mean of the point means and the mean of the
+// point covariances that fell into it (aggregated distributions, not the scatter of the points),
+// and the point count. Storage is a flat open-addressing table with linear probing.
+class GaussianVoxelMap {
+ public:
+  explicit GaussianVoxelMap(double resolution);
+
+  double resolution() const { return resolution_; }
+  float inv_resolution() const { return inv_resolution_; }
+  size_t num_voxels() const { return means_.size(); }
+
+  // Adds a cloud (with covariances) mapped by T_map_cloud. Call finalize() before lookups.
+  void insert(const PointCloud& cloud, const Eigen::Isometry3d& T_map_cloud = Eigen::Isometry3d::Identity());
+  void finalize();
+
+  // Index of the voxel holding p, or -1.
+  int lookup(const Eigen::Vector3f& p) const { return find(voxel_coord(p, inv_resolution_)); }
+  int find(const Eigen::Vector3i& coord) const {
+    uint32_t slot = hash_voxel(coord) & mask_;
+    while (true) {
+      const Slot& s = slots_[slot];
+      if (s.index < 0) return -1;
+      if (s.x == coord.x() && s.y == coord.y() && s.z == coord.z()) return s.index;
+      slot = (slot + 1) & mask_;
+    }
+  }
+
+  const Eigen::Vector3f& mean(int v) const { return means_[v]; }
+  const Eigen::Matrix3f& cov(int v) const { return covs_[v]; }
+  int count(int v) const { return counts_[v]; }
+  Eigen::Vector3i coord(int v) const { return coords_[v]; }
+
+  const std::vector<Eigen::Vector3f>& means() const { return means_; }
+  const std::vector<Eigen::Matrix3f>& covs() const { return covs_; }
+
+  size_t memory_bytes() const;
+
+ private:
+  struct Slot {
+    int32_t x, y, z;
+    int32_t index;  // -1: empty
+  };
+  int find_or_insert(const Eigen::Vector3i& coord);
+  void rehash(size_t capacity);
+
+  double resolution_;
+  float inv_resolution_;
+  uint32_t mask_ = 0;
+  std::vector<Slot> slots_;
+  std::vector<Eigen::Vector3i> coords_;
+  std::vector<int> counts_;
+  // Accumulators in double: a submap sums thousands of points far from the origin.
+  std::vector<Eigen::Vector3d> sum_means_;
+  std::vector<Eigen::Matrix3d> sum_covs_;
+  std::vector<Eigen::Vector3f> means_;
+  std::vector<Eigen::Matrix3f> covs_;
+};
+
+// Paper Eq. 7-8: fraction of the source points that fall into an occupied target voxel when mapped
+// by T_target_source. Asymmetric: overlap(source -> target).
+double overlap(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& T_target_source);
+
+}  // namespace gcmap

@@ -1,0 +1,34 @@
+#pragma once
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <vector>
+
+namespace gcmap {
+
+// Structure of arrays: the registration hot loops touch only points and covs.
+// Optional channels are either empty or of size().
+struct PointCloud {
+  std::vector<Eigen::Vector3f> points;
+  std::vector<Eigen::Matrix3f> covs;
+  std::vector<float> intensities;
+  std::vector<float> times;
+  std::vector<uint32_t> labels;
+
+  size_t size() const { return points.size(); }
+  bool empty() const { return points.empty(); }
+  bool has_covs() const { return !covs.empty() && covs.size() == points.size(); }
+  bool has_intensities() const { return !intensities.empty(); }
+  bool has_times() const { return !times.empty(); }
+  bool has_labels() const { return !labels.empty(); }
+
+  void reserve(size_t n) { points.reserve(n); }
+
+  // Keeps the points whose flag is true, in order, for every channel present.
+  void filter(const std::vector<char>& keep);
+};
+
+// Returns the cloud with every point (and covariance) mapped by T.
+PointCloud transformed(const PointCloud& cloud, const Eigen::Isometry3d& T);
+
+}  // namespace gcmap

@@ -1,0 +1,25 @@
+#pragma once
+#include <string>
+
+#include "gcmap/core/point_cloud.hpp"
+
+namespace gcmap {
+
+// Layout of raw .bin scans: KITTI float32 x y z intensity, or plain float32 x y z.
+enum class BinFields { xyzi, xyz };
+BinFields parse_bin_fields(const std::string& name);
+
+// Reads .bin, .pcd (ascii, binary, binary_compressed) or .ply (ascii, binary little/big endian) by
+// extension. Fields are found by name in any order; x, y, z are required, intensity is optional.
+// Non-finite points are dropped (counted in the log). Malformed input throws Error("PATH: ...").
+PointCloud read_point_cloud(const std::string& path, BinFields bin_fields = BinFields::xyzi);
+
+// Binary PLY / binary PCD with x y z and intensity when present, written atomically.
+void write_ply(const std::string& path, const PointCloud& cloud);
+void write_pcd(const std::string& path, const PointCloud& cloud);
+void write_point_cloud(const std::string& path, const PointCloud& cloud);  // by extension
+
+// LZF as used by PCD binary_compressed. Throws on corrupt input.
+std::string lzf_decompress(const std::string& in, size_t expected_size);
+
+}  // namespace gcmap

@@ -1,0 +1,30 @@
+#pragma once
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+namespace gcmap {
+
+// kitti: 12 numbers (3x4 row-major) per line; tum: "t x y z qx qy qz qw";
+// named: "NAME x y z qx qy qz qw" (the graph.txt of shared/data/kitti07_submaps).
+enum class TrajectoryFormat { kitti, tum, named };
+
+struct Trajectory {
+  TrajectoryFormat format = TrajectoryFormat::kitti;
+  std::vector<Eigen::Isometry3d> poses;
+  std::vector<double> stamps;      // tum
+  std::vector<std::string> names;  // named
+  size_t size() const { return poses.size(); }
+};
+
+// Detects the format from the first data line; every line must agree. Comments (#) and blank lines
+// are skipped. Throws Error("PATH:LINE: ...") on anything malformed or non-finite.
+Trajectory read_trajectory(const std::string& path);
+void write_trajectory(const std::string& path, const Trajectory& trajectory);
+
+TrajectoryFormat parse_trajectory_format(const std::string& name);
+
+// KITTI calib.txt: returns Tr (velodyne -> camera 0).
+Eigen::Isometry3d read_kitti_calib_tr(const std::string& path);
+
+}  // namespace gcmap

@@ -1,0 +1,31 @@
+#pragma once
+#include "gcmap/core/gaussian_voxel_map.hpp"
+#include "gcmap/core/point_cloud.hpp"
+#include "gcmap/core/se3.hpp"
+
+namespace gcmap {
+
+struct RegistrationConfig {
+  int max_iterations = 64;
+  // Converged when an accepted step rotates less than this (rad) and translates less than this (m).
+  double rotation_eps = 1e-4;
+  double translation_eps = 1e-4;
+  double initial_lambda = 1e-6;
+  double max_lambda = 1e8;
+};
+
+struct RegistrationResult {
+  Eigen::Isometry3d T_target_source = Eigen::Isometry3d::Identity();
+  bool converged = false;
+  int iterations = 0;
+  size_t num_inliers = 0;
+  double error = 0.0;
+  Matrix6d H = Matrix6d::Zero();  // Gauss-Newton Hessian at the solution (information of T_target_source)
+};
+
+// Levenberg-Marquardt on T_target_source with right perturbations; a step is accepted only when
+// the VGICP error, re-associated at the trial pose, decreases.
+RegistrationResult align_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
+                               const Eigen::Isometry3d& init_T_target_source, const RegistrationConfig& config = {});
+
+}  // namespace gcmap

@@ -1,0 +1,51 @@
+#pragma once
+// VGICP matching cost between a source cloud i and a target Gaussian voxel map j
+// (shared/docs/vgicp-factor-math.md). T_target_source = T_j^-1 T_i maps source points into the
+// target frame; per inlier point, e = mu' - T mu, Omega = (C' + R C R^T)^-1, cost e^T Omega e.
+#include "gcmap/core/gaussian_voxel_map.hpp"
+#include "gcmap/core/point_cloud.hpp"
+#include "gcmap/core/se3.hpp"
+
+namespace gcmap {
+
+// Gauss-Newton blocks of the cost w.r.t. right perturbations of T_i (source) and T_j (target):
+// f(d) ~ error + 2 b^T d + d^T H d with d = [d_i; d_j].
+struct VgicpLinearization {
+  Matrix6d H_ii = Matrix6d::Zero();
+  Matrix6d H_ij = Matrix6d::Zero();
+  Matrix6d H_jj = Matrix6d::Zero();
+  Vector6d b_i = Vector6d::Zero();
+  Vector6d b_j = Vector6d::Zero();
+  double error = 0.0;
+  size_t num_inliers = 0;
+};
+
+struct VgicpError {
+  double error = 0.0;
+  size_t num_inliers = 0;
+};
+
+// Data association (voxel lookup) and Omega are recomputed from T_target_source on every call.
+// Parallel over points with a deterministic reduction: the same result for any thread count.
+VgicpLinearization linearize_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
+                                   const Eigen::Isometry3d& T_target_source);
+VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
+                          const Eigen::Isometry3d& T_target_source);
+
+// Error at T_target_source with each point associated to the voxel it falls in under T_association
+// (the linearization point). LM judges trial steps with this: re-associating at a trial pose adds
+// newly matched points to the sum, so a better alignment can show a larger error and LM would stall.
+VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
+                          const Eigen::Isometry3d& T_target_source, const Eigen::Isometry3d& T_association);
+
+// The accumulation is done in the target frame (B = de/dd_j = [-[q]x, I]); the source blocks follow
+// exactly from A = -B Ad(T_target_source), so a binary factor costs no more than a unary one.
+struct TargetFrameSums {
+  Matrix6d H = Matrix6d::Zero();
+  Vector6d b = Vector6d::Zero();
+  double error = 0.0;
+  size_t num_inliers = 0;
+};
+VgicpLinearization expand_to_both_poses(const TargetFrameSums& sums, const Eigen::Isometry3d& T_target_source);
+
+}  // namespace gcmap

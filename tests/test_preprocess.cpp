@@ -1,0 +1,124 @@
+#include <Eigen/Eigenvalues>
+#include <tbb/global_control.h>
+
+#include "gcmap/core/gaussian_voxel_map.hpp"
+#include "gcmap/core/preprocess.hpp"
+#include "gcmap/sim/synthetic.hpp"
+#include "test_util.hpp"
+
+namespace gcmap {
+namespace {
+
+TEST(Downsample, AveragesEachVoxelAndIsDeterministic) {
+  PointCloud c;
+  c.points = {{0.01f, 0.01f, 0.01f}, {0.03f, 0.03f, 0.03f}, {0.5f, 0.5f, 0.5f}, {-0.01f, 0.0f, 0.0f}};
+  c.intensities = {1.f, 3.f, 5.f, 7.f};
+  c.labels = {10, 11, 12, 13};
+  const PointCloud d = voxel_downsample(c, 0.1);
+  ASSERT_EQ(d.size(), 3u);
+  // Lexicographic voxel order: (-1,0,0), (0,0,0), (5,5,5).
+  EXPECT_NEAR(d.points[0].x(), -0.01f, 1e-7);
+  EXPECT_NEAR(d.points[1].x(), 0.02f, 1e-7);
+  EXPECT_NEAR(d.intensities[1], 2.f, 1e-6);
+  EXPECT_EQ(d.labels[1], 10u);
+  EXPECT_NEAR(d.points[2].y(), 0.5f, 1e-7);
+
+  const PointCloud big = make_structured_scene(50000, 7);
+  const PointCloud a = voxel_downsample(big, 0.25);
+  PointCloud b;
+  {
+    tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    b = voxel_downsample(big, 0.25);
+  }
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) ASSERT_EQ(a.points[i], b.points[i]);
+  EXPECT_LT(a.size(), big.size());
+}
+
+TEST(Downsample, ExactFarFromOrigin) {
+  // +-100 km at 5 cm: points in distinct voxels stay distinct, points of one voxel merge.
+  PointCloud c;
+  for (double base : {-100000.0, 100000.0}) {
+    c.points.push_back(Eigen::Vector3f(base + 0.01, base + 0.01, 0.01));
+    c.points.push_back(Eigen::Vector3f(base + 0.02, base + 0.02, 0.02));
+    c.points.push_back(Eigen::Vector3f(base + 0.5, base + 0.5, 0.5));
+  }
+  const PointCloud d = voxel_downsample(c, 0.05);
+  EXPECT_EQ(d.size(), 4u);
+  EXPECT_NEAR(d.points[0].x(), -100000.0 + 0.015, 0.01);
+}
+
+TEST(Covariance, PlaneLikeOnAPlaneAndSafeOnTinyClouds) {
+  PointCloud plane;
+  std::mt19937_64 rng(4);
+  std::uniform_real_distribution<float> u(-5.f, 5.f);
+  for (int i = 0; i < 2000; ++i) plane.points.emplace_back(u(rng), u(rng), 0.3f * 1.0f);
+  estimate_covariances(plane);
+  for (size_t i = 0; i < plane.size(); i += 97) {
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> eig(plane.covs[i]);
+    EXPECT_NEAR(eig.eigenvalues()[0], 1e-3, 1e-5);
+    EXPECT_NEAR(eig.eigenvalues()[1], 1.0, 1e-4);
+    EXPECT_NEAR(std::abs(eig.eigenvectors().col(0).z()), 1.0, 1e-4);  // normal is z
+  }
+  PointCloud tiny;
+  tiny.points = {{0, 0, 0}, {1, 0, 0}};
+  estimate_covariances(tiny);
+  ASSERT_EQ(tiny.covs.size(), 2u);
+  EXPECT_TRUE(tiny.covs[0].allFinite());
+  EXPECT_GT(tiny.covs[0].determinant(), 0.f);
+}
+
+TEST(VoxelMap, StoresMeanOfMeansAndMeanOfCovariances) {
+  PointCloud c;
+  c.points = {{0.1f, 0.1f, 0.1f}, {0.3f, 0.2f, 0.1f}, {1.5f, 0.1f, 0.1f}};
+  c.covs = {Eigen::Matrix3f::Identity(), 3.f * Eigen::Matrix3f::Identity(), Eigen::Matrix3f::Identity()};
+  GaussianVoxelMap map(1.0);
+  map.insert(c);
+  map.finalize();
+  ASSERT_EQ(map.num_voxels(), 2u);
+  const int v = map.lookup({0.9f, 0.9f, 0.9f});
+  ASSERT_GE(v, 0);
+  EXPECT_EQ(map.count(v), 2);
+  EXPECT_TRUE(map.mean(v).isApprox(Eigen::Vector3f(0.2f, 0.15f, 0.1f)));
+  EXPECT_TRUE(map.cov(v).isApprox(2.f * Eigen::Matrix3f::Identity()));
+  EXPECT_EQ(map.lookup({-0.1f, 0.5f, 0.5f}), -1);
+}
+
+TEST(VoxelMap, NoPointLostAtHighLoad) {
+  // Many voxels force several rehashes; every voxel must stay findable with the right count.
+  PointCloud c;
+  for (int x = -60; x < 60; ++x)
+    for (int y = -60; y < 60; ++y)
+      for (int z = 0; z < 3; ++z) c.points.emplace_back(x + 0.5f, y + 0.5f, z + 0.5f);
+  c.covs.assign(c.size(), Eigen::Matrix3f::Identity());
+  GaussianVoxelMap map(1.0);
+  map.insert(c);
+  map.insert(c);
+  map.finalize();
+  EXPECT_EQ(map.num_voxels(), c.size());
+  for (size_t i = 0; i < c.size(); ++i) {
+    const int v = map.lookup(c.points[i]);
+    ASSERT_GE(v, 0);
+    ASSERT_EQ(map.count(v), 2);
+  }
+}
+
+TEST(Overlap, FractionOfSourcePointsInOccupiedVoxels) {
+  PointCloud target;
+  for (int i = 0; i < 10; ++i) target.points.emplace_back(i + 0.5f, 0.5f, 0.5f);
+  target.covs.assign(target.size(), Eigen::Matrix3f::Identity());
+  GaussianVoxelMap map(1.0);
+  map.insert(target);
+  map.finalize();
+  PointCloud source;
+  for (int i = 0; i < 20; ++i) source.points.emplace_back(i + 0.5f, 0.5f, 0.5f);
+  EXPECT_DOUBLE_EQ(overlap(source, map, Eigen::Isometry3d::Identity()), 0.5);
+  Eigen::Isometry3d shift = Eigen::Isometry3d::Identity();
+  shift.translation().x() = -5.0;  // points 5..14 land on 0..9
+  EXPECT_DOUBLE_EQ(overlap(source, map, shift), 0.5);
+  shift.translation().y() = 3.0;
+  EXPECT_DOUBLE_EQ(overlap(source, map, shift), 0.0);
+}
+
+}  // namespace
+}  // namespace gcmap
