@@ -1,6 +1,5 @@
 #include "commands.hpp"
 namespace gcmap::cli {
-void add_optimize(CLI::App&, Runner&) {}
 void add_simulate(CLI::App&, Runner&) {}
 void add_eval(CLI::App&, Runner&) {}
 void add_mme(CLI::App&, Runner&) {}

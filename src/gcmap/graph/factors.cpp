@@ -1,0 +1,81 @@
+#include "gcmap/graph/factors.hpp"
+
+#include <cmath>
+
+#include "gcmap/registration/vgicp.hpp"
+
+namespace gcmap {
+
+MatchingCostFactor::MatchingCostFactor(int source_key, int target_key, std::shared_ptr<const PointCloud> source,
+                                       std::shared_ptr<const GaussianVoxelMap> target)
+    : source_(std::move(source)), target_(std::move(target)) {
+  keys_ = {source_key, target_key};
+}
+
+void MatchingCostFactor::linearize(const Eigen::Isometry3d* const* poses, FactorLinearization& out) {
+  T_lin_ = poses[1]->inverse() * *poses[0];
+  const VgicpLinearization lin = linearize_vgicp(*source_, *target_, T_lin_);
+  out.H.topLeftCorner<6, 6>() = lin.H_ii;
+  out.H.topRightCorner<6, 6>() = lin.H_ij;
+  out.H.bottomLeftCorner<6, 6>() = lin.H_ij.transpose();
+  out.H.bottomRightCorner<6, 6>() = lin.H_jj;
+  out.b << lin.b_i, lin.b_j;
+  out.error = lin.error;
+  last_inliers_ = lin.num_inliers;
+}
+
+double MatchingCostFactor::trial_error(const Eigen::Isometry3d* const* poses) const {
+  return evaluate_vgicp(*source_, *target_, poses[1]->inverse() * *poses[0], T_lin_).error;
+}
+
+RelativePoseFactor::RelativePoseFactor(int key_i, int key_j, const Eigen::Isometry3d& measured,
+                                       const Matrix6d& information, RobustKernel kernel)
+    : measured_(measured), information_(information), kernel_(kernel) {
+  keys_ = {key_i, key_j};
+}
+
+Vector6d RelativePoseFactor::residual(const Eigen::Isometry3d& T_i, const Eigen::Isometry3d& T_j) const {
+  return se3_log(measured_.inverse() * T_i.inverse() * T_j);
+}
+
+void RelativePoseFactor::linearize(const Eigen::Isometry3d* const* poses, FactorLinearization& out) {
+  const Eigen::Isometry3d& T_i = *poses[0];
+  const Eigen::Isometry3d& T_j = *poses[1];
+  const Vector6d e = residual(T_i, T_j);
+  weight_ = kernel_.weight(std::sqrt(std::max(0.0, e.dot(information_ * e))));
+  const Matrix6d Jr_inv = se3_right_jacobian_inverse(e);
+  Eigen::Matrix<double, 6, 12> J;
+  J.leftCols<6>() = -Jr_inv * adjoint(T_j.inverse() * T_i);
+  J.rightCols<6>() = Jr_inv;
+  const Eigen::Matrix<double, 12, 6> JtW = weight_ * J.transpose() * information_;
+  out.H = JtW * J;
+  out.b = JtW * e;
+  out.error = weight_ * e.dot(information_ * e);
+}
+
+double RelativePoseFactor::trial_error(const Eigen::Isometry3d* const* poses) const {
+  const Vector6d e = residual(*poses[0], *poses[1]);
+  return weight_ * e.dot(information_ * e);
+}
+
+PriorFactor::PriorFactor(int key, const Eigen::Isometry3d& prior, const Matrix6d& information)
+    : prior_(prior), information_(information) {
+  keys_ = {key, -1};
+}
+
+void PriorFactor::linearize(const Eigen::Isometry3d* const* poses, FactorLinearization& out) {
+  const Vector6d e = se3_log(prior_.inverse() * *poses[0]);
+  const Matrix6d J = se3_right_jacobian_inverse(e);
+  out.H.setZero();
+  out.b.setZero();
+  out.H.topLeftCorner<6, 6>() = J.transpose() * information_ * J;
+  out.b.head<6>() = J.transpose() * information_ * e;
+  out.error = e.dot(information_ * e);
+}
+
+double PriorFactor::trial_error(const Eigen::Isometry3d* const* poses) const {
+  const Vector6d e = se3_log(prior_.inverse() * *poses[0]);
+  return e.dot(information_ * e);
+}
+
+}  // namespace gcmap

@@ -1,0 +1,103 @@
+#pragma once
+// Factors over SE(3) poses (right perturbations, shared/docs/vgicp-factor-math.md). Each gives its
+// error and its Gauss-Newton linearization over the poses it touches:
+// error(d) ~ error + 2 b^T d + d^T H d.
+#include <array>
+#include <memory>
+
+#include "gcmap/core/gaussian_voxel_map.hpp"
+#include "gcmap/core/point_cloud.hpp"
+#include "gcmap/core/se3.hpp"
+#include "gcmap/graph/robust_kernel.hpp"
+
+namespace gcmap {
+
+using Matrix12d = Eigen::Matrix<double, 12, 12>;
+using Vector12d = Eigen::Matrix<double, 12, 1>;
+
+// For a unary factor only the top-left 6x6 / head 6 are used.
+struct FactorLinearization {
+  Matrix12d H = Matrix12d::Zero();
+  Vector12d b = Vector12d::Zero();
+  double error = 0.0;
+};
+
+class Factor {
+ public:
+  virtual ~Factor() = default;
+  virtual int num_keys() const = 0;
+  const std::array<int, 2>& keys() const { return keys_; }
+
+  // poses[k] is the pose of keys()[k].
+  virtual void linearize(const Eigen::Isometry3d* const* poses, FactorLinearization& out) = 0;
+  // Error at trial poses, judged with what was frozen at the last linearization (voxel association,
+  // robust weight), so LM's gain ratio compares like with like.
+  virtual double trial_error(const Eigen::Isometry3d* const* poses) const = 0;
+
+ protected:
+  std::array<int, 2> keys_{-1, -1};
+};
+
+// VGICP matching cost between a source cloud (key i) and a target voxel map (key j), paper Eq. 1-6.
+// Association and fused covariances are recomputed at every linearization.
+class MatchingCostFactor : public Factor {
+ public:
+  MatchingCostFactor(int source_key, int target_key, std::shared_ptr<const PointCloud> source,
+                     std::shared_ptr<const GaussianVoxelMap> target);
+  int num_keys() const override { return 2; }
+  void linearize(const Eigen::Isometry3d* const* poses, FactorLinearization& out) override;
+  double trial_error(const Eigen::Isometry3d* const* poses) const override;
+
+  const PointCloud& source() const { return *source_; }
+  const GaussianVoxelMap& target() const { return *target_; }
+  size_t last_num_inliers() const { return last_inliers_; }
+  const Eigen::Isometry3d& linearization_point() const { return T_lin_; }
+  // Lets a batched backend (the GPU) record what it computed for this factor.
+  void set_linearization_point(const Eigen::Isometry3d& T, size_t inliers) {
+    T_lin_ = T;
+    last_inliers_ = inliers;
+  }
+
+ private:
+  std::shared_ptr<const PointCloud> source_;
+  std::shared_ptr<const GaussianVoxelMap> target_;
+  Eigen::Isometry3d T_lin_ = Eigen::Isometry3d::Identity();  // T_target_source at the last linearization
+  size_t last_inliers_ = 0;
+};
+
+// SE(3) constraint T_i^-1 T_j ~ measured, error = log(measured^-1 T_i^-1 T_j) whitened by a 6x6
+// information matrix (paper Eq. 10), with an IRLS robust kernel whose weight is refreshed at each
+// linearization.
+class RelativePoseFactor : public Factor {
+ public:
+  RelativePoseFactor(int key_i, int key_j, const Eigen::Isometry3d& measured_T_i_j, const Matrix6d& information,
+                     RobustKernel kernel = {});
+  int num_keys() const override { return 2; }
+  void linearize(const Eigen::Isometry3d* const* poses, FactorLinearization& out) override;
+  double trial_error(const Eigen::Isometry3d* const* poses) const override;
+
+  Vector6d residual(const Eigen::Isometry3d& T_i, const Eigen::Isometry3d& T_j) const;
+  double weight() const { return weight_; }
+  const RobustKernel& kernel() const { return kernel_; }
+
+ private:
+  Eigen::Isometry3d measured_;
+  Matrix6d information_;
+  RobustKernel kernel_;
+  double weight_ = 1.0;
+};
+
+// Soft prior on one pose: error = log(prior^-1 T) whitened by the information matrix.
+class PriorFactor : public Factor {
+ public:
+  PriorFactor(int key, const Eigen::Isometry3d& prior, const Matrix6d& information);
+  int num_keys() const override { return 1; }
+  void linearize(const Eigen::Isometry3d* const* poses, FactorLinearization& out) override;
+  double trial_error(const Eigen::Isometry3d* const* poses) const override;
+
+ private:
+  Eigen::Isometry3d prior_;
+  Matrix6d information_;
+};
+
+}  // namespace gcmap

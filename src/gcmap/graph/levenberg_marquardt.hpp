@@ -1,0 +1,63 @@
+#pragma once
+#include <memory>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "gcmap/graph/factor_graph.hpp"
+
+namespace gcmap {
+
+struct LMConfig {
+  int max_iterations = 50;
+  double initial_lambda = 1e-6;  // relative to diag(H) (Marquardt scaling)
+  double max_lambda = 1e10;
+  double lambda_up = 10.0;
+  double relative_error_tol = 1e-6;  // stop when an accepted step lowers the error by less
+  double step_tol = 1e-6;            // stop when the largest step component is smaller
+};
+
+struct LMIteration {
+  int iteration = 0;
+  double error = 0.0;  // after the accepted step, at its own re-linearization
+  double lambda = 0.0;
+  int trials = 0;
+  double linearize_ms = 0.0;
+  double solve_ms = 0.0;
+};
+
+struct LMResult {
+  int iterations = 0;
+  bool converged = false;
+  double initial_error = 0.0;
+  double final_error = 0.0;
+  double linearize_ms = 0.0;
+  double solve_ms = 0.0;
+  double total_ms = 0.0;
+  std::vector<LMIteration> history;
+};
+
+// Levenberg-Marquardt over a block-sparse 6x6 system assembled from the factors' Hessian blocks,
+// solved with a sparse LDL^T (Eigen). The pattern is analysed once per call; the damping
+// lambda carries over between calls (warm start). Correspondence policy: each iteration
+// re-linearizes (re-associates) every factor; trial steps are judged by Factor::trial_error with the
+// association and robust weights of that linearization, so the gain ratio compares like with like,
+// and a step is accepted only when that error decreases.
+class LevenbergMarquardt {
+ public:
+  explicit LevenbergMarquardt(LMConfig config = {}, std::shared_ptr<LinearizationBackend> backend = nullptr);
+
+  // Optimizes the non-fixed poses in place. Throws Error when a factor references a missing pose or
+  // a free pose is not constrained by any factor (the system would be singular).
+  LMResult optimize(const FactorGraph& graph, Values& values, const std::set<int>& fixed = {});
+
+  const LMConfig& config() const { return config_; }
+  void set_backend(std::shared_ptr<LinearizationBackend> backend) { backend_ = std::move(backend); }
+
+ private:
+  LMConfig config_;
+  std::shared_ptr<LinearizationBackend> backend_;
+  double lambda_;
+};
+
+}  // namespace gcmap

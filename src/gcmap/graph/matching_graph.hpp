@@ -1,0 +1,24 @@
+#pragma once
+#include <memory>
+#include <vector>
+
+#include "gcmap/graph/factor_graph.hpp"
+
+namespace gcmap {
+
+struct ScanNode {
+  std::shared_ptr<const PointCloud> cloud;  // with covariances
+  std::shared_ptr<const GaussianVoxelMap> voxels;
+};
+
+struct PairOverlap {
+  int source, target;
+  double overlap;  // overlap(source -> target) at the given poses
+};
+
+// For every pair i < j whose overlap(j -> i) at the poses is at least min_overlap, adds a
+// MatchingCostFactor with source j and target i. Returns the pairs that got a factor.
+std::vector<PairOverlap> add_overlapping_pairs(FactorGraph& graph, const std::vector<ScanNode>& nodes,
+                                               const Values& values, double min_overlap);
+
+}  // namespace gcmap

@@ -1,0 +1,237 @@
+#include "gcmap/core/error.hpp"
+#include "gcmap/core/preprocess.hpp"
+#include "gcmap/graph/levenberg_marquardt.hpp"
+#include "gcmap/graph/matching_graph.hpp"
+#include "gcmap/io/point_cloud_io.hpp"
+#include "gcmap/io/trajectory_io.hpp"
+#include "gcmap/sim/synthetic.hpp"
+#include "test_util.hpp"
+
+namespace gcmap {
+namespace {
+
+TEST(RobustKernel, HandComputedWeights) {
+  EXPECT_DOUBLE_EQ(RobustKernel::none().weight(123.0), 1.0);
+  EXPECT_DOUBLE_EQ(RobustKernel::huber(2.0).weight(1.5), 1.0);
+  EXPECT_DOUBLE_EQ(RobustKernel::huber(2.0).weight(8.0), 0.25);
+  // tukey(x, w) = max(0, 1 - x^2/w)^2
+  EXPECT_DOUBLE_EQ(tukey_weight(1.0, 4.0), 0.5625);
+  EXPECT_DOUBLE_EQ(tukey_weight(3.0, 4.0), 0.0);
+  const RobustKernel st = RobustKernel::shifted_tukey(4.0, 5.0);
+  EXPECT_DOUBLE_EQ(st.weight(5.0), 1.0);     // peak at the offset
+  EXPECT_DOUBLE_EQ(st.weight(4.0), 0.5625);  // |4-5| = 1
+  EXPECT_DOUBLE_EQ(st.weight(6.0), 0.5625);
+  EXPECT_DOUBLE_EQ(st.weight(0.5), 0.0);     // satisfied: stops pulling
+  EXPECT_DOUBLE_EQ(st.weight(20.0), 0.0);    // grossly wrong: ignored
+  EXPECT_THROW(RobustKernel::parse("cauchy", 1.0, 0.0), Error);
+}
+
+TEST(RelativePoseFactor, JacobianMatchesNumeric) {
+  std::mt19937_64 rng(9);
+  const Eigen::Isometry3d Ti = test::random_pose(rng, 1.0, 5.0), Tj = test::random_pose(rng, 1.0, 5.0);
+  const Eigen::Isometry3d meas = Ti.inverse() * Tj * test::random_pose(rng, 0.3, 0.5);
+  Matrix6d info = Matrix6d::Identity();
+  info.diagonal() << 10, 20, 30, 1, 2, 3;
+  RelativePoseFactor f(0, 1, meas, info);
+  const Eigen::Isometry3d* poses[2] = {&Ti, &Tj};
+  FactorLinearization lin;
+  f.linearize(poses, lin);
+  // Numeric Jacobian of the residual.
+  Eigen::Matrix<double, 6, 12> J;
+  const double h = 1e-6;
+  for (int k = 0; k < 12; ++k) {
+    Vector6d d = Vector6d::Zero();
+    d[k % 6] = h;
+    const Eigen::Isometry3d ip = k < 6 ? Ti * se3_exp(d) : Ti, im = k < 6 ? Ti * se3_exp(-d) : Ti;
+    const Eigen::Isometry3d jp = k < 6 ? Tj : Tj * se3_exp(d), jm = k < 6 ? Tj : Tj * se3_exp(-d);
+    J.col(k) = (f.residual(ip, jp) - f.residual(im, jm)) / (2 * h);
+  }
+  const Vector6d e = f.residual(Ti, Tj);
+  EXPECT_LT((lin.H - J.transpose() * info * J).norm(), 1e-5 * lin.H.norm());
+  EXPECT_LT((lin.b - J.transpose() * info * e).norm(), 1e-5 * lin.b.norm());
+  EXPECT_NEAR(lin.error, e.dot(info * e), 1e-9);
+}
+
+// A square loop of 4 poses with consistent relative measurements: the optimum is the truth.
+struct PoseGraphProblem {
+  std::vector<Eigen::Isometry3d> truth;
+  FactorGraph graph;
+  Values initial;
+};
+
+PoseGraphProblem square_loop(RobustKernel kernel, bool add_outlier) {
+  PoseGraphProblem p;
+  std::mt19937_64 rng(17);
+  for (int k = 0; k < 4; ++k) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = so3_exp(Eigen::Vector3d(0, 0, k * M_PI / 2));
+    T.translation() = T.linear() * Eigen::Vector3d(5, 0, 0);
+    p.truth.push_back(T);
+  }
+  const Matrix6d info = Matrix6d::Identity() * 100.0;
+  for (int k = 0; k < 4; ++k) {
+    const int j = (k + 1) % 4;
+    p.graph.add(std::make_shared<RelativePoseFactor>(k, j, p.truth[k].inverse() * p.truth[j], info, kernel));
+    p.graph.add(std::make_shared<RelativePoseFactor>(k, (k + 2) % 4, p.truth[k].inverse() * p.truth[(k + 2) % 4], info, kernel));
+  }
+  if (add_outlier) {
+    // Claims pose 2 is 4 m and 40 degrees away from where it is.
+    Eigen::Isometry3d wrong = p.truth[0].inverse() * p.truth[2];
+    wrong = wrong * se3_exp((Vector6d() << 0, 0, 0.7, 4.0, 0, 0).finished());
+    p.graph.add(std::make_shared<RelativePoseFactor>(0, 2, wrong, info, kernel));
+  }
+  for (int k = 0; k < 4; ++k) p.initial[k] = k == 0 ? p.truth[0] : p.truth[k] * test::random_pose(rng, 0.15, 0.4);
+  return p;
+}
+
+TEST(LevenbergMarquardt, PoseGraphReachesKnownOptimum) {
+  PoseGraphProblem p = square_loop(RobustKernel::none(), false);
+  LevenbergMarquardt lm;
+  const LMResult r = lm.optimize(p.graph, p.initial, {0});
+  EXPECT_TRUE(r.converged);
+  EXPECT_LT(r.final_error, 1e-12);
+  for (int k = 0; k < 4; ++k) {
+    EXPECT_LT(test::translation_error(p.initial[k], p.truth[k]), 1e-6);
+    EXPECT_LT(test::rotation_error_deg(p.initial[k], p.truth[k]), 1e-5);
+  }
+}
+
+TEST(LevenbergMarquardt, ShiftedTukeyRejectsOutlierConstraint) {
+  // The outlier's whitened residual is ~ sqrt(100 * (0.7^2 + 4^2)) ~ 40, the inliers' start below
+  // ~10: a kernel of width sqrt(w) = 20 gives the outlier zero weight and lets the inliers decide.
+  PoseGraphProblem robust = square_loop(RobustKernel::shifted_tukey(400.0, 0.0), true);
+  LevenbergMarquardt lm;
+  lm.optimize(robust.graph, robust.initial, {0});
+  for (int k = 0; k < 4; ++k) EXPECT_LT(test::translation_error(robust.initial[k], robust.truth[k]), 1e-3);
+  const auto* outlier = dynamic_cast<const RelativePoseFactor*>(robust.graph.factors.back().get());
+  EXPECT_EQ(outlier->weight(), 0.0);
+
+  PoseGraphProblem plain = square_loop(RobustKernel::none(), true);
+  LevenbergMarquardt lm2;
+  lm2.optimize(plain.graph, plain.initial, {0});
+  EXPECT_GT(test::translation_error(plain.initial[2], plain.truth[2]), 0.5);  // the outlier drags it
+}
+
+TEST(LevenbergMarquardt, SingularSystemIsReported) {
+  PoseGraphProblem p = square_loop(RobustKernel::none(), false);
+  p.initial[7] = Eigen::Isometry3d::Identity();  // a pose no factor touches
+  LevenbergMarquardt lm;
+  try {
+    lm.optimize(p.graph, p.initial, {0});
+    ADD_FAILURE();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("pose 7"), std::string::npos) << e.what();
+  }
+  FactorGraph g;
+  g.add(std::make_shared<RelativePoseFactor>(0, 9, Eigen::Isometry3d::Identity(), Matrix6d::Identity()));
+  Values v{{0, Eigen::Isometry3d::Identity()}};
+  EXPECT_THROW(lm.optimize(g, v, {0}), Error);
+}
+
+// A fully connected graph of 10 synthetic frames around one scene.
+TEST(LevenbergMarquardt, SyntheticTenFramesConvergeToGroundTruth) {
+  std::mt19937_64 rng(23);
+  std::vector<ScanNode> nodes;
+  std::vector<Eigen::Isometry3d> truth;
+  Values values;
+  for (int k = 0; k < 10; ++k) {
+    truth.push_back(k == 0 ? Eigen::Isometry3d::Identity() : test::random_pose(rng, 0.2, 2.0));
+    // Every frame sees the same surfaces with its own sampling, expressed in its own frame.
+    PointCloud c = transformed(voxel_downsample(make_structured_scene(20000, 100 + k), 0.25), truth[k].inverse());
+    estimate_covariances(c);
+    auto v = std::make_shared<GaussianVoxelMap>(0.5);
+    v->insert(c);
+    v->finalize();
+    nodes.push_back({std::make_shared<const PointCloud>(std::move(c)), v});
+    values[k] = k == 0 ? truth[0] : truth[k] * test::random_pose(rng, 0.05, 0.2);
+  }
+  FactorGraph graph;
+  const auto pairs = add_overlapping_pairs(graph, nodes, values, 0.025);
+  EXPECT_EQ(pairs.size(), 45u);  // fully connected
+  LevenbergMarquardt lm;
+  const LMResult r = lm.optimize(graph, values, {0});
+  EXPECT_LT(r.final_error, r.initial_error);
+  for (int k = 1; k < 10; ++k) {
+    EXPECT_LT(test::translation_error(values[k], truth[k]), 0.03) << k;
+    EXPECT_LT(test::rotation_error_deg(values[k], truth[k]), 0.1) << k;
+  }
+  // Accepted steps never increase the error LM judges them by, and the error re-associated at
+  // each accepted point ends below where it started.
+  double previous = r.initial_error;
+  for (const LMIteration& it : r.history) {
+    EXPECT_GT(it.trials, 0);
+    previous = it.error;
+  }
+  EXPECT_LT(previous, r.initial_error);
+}
+
+TEST(LevenbergMarquardt, NeverAcceptsACostIncrease) {
+  // Pure pose graph: trial_error is the true cost, so the history must be monotone.
+  PoseGraphProblem p = square_loop(RobustKernel::none(), false);
+  for (int k = 1; k < 4; ++k) p.initial[k] = p.initial[k] * se3_exp((Vector6d() << 0.5, -0.4, 0.3, 2, 1, -1).finished());
+  LevenbergMarquardt lm;
+  const LMResult r = lm.optimize(p.graph, p.initial, {0});
+  double previous = r.initial_error;
+  for (const LMIteration& it : r.history) {
+    EXPECT_LE(it.error, previous + 1e-12);
+    previous = it.error;
+  }
+  EXPECT_LT(r.final_error, 1e-10);
+}
+
+class Kitti07 : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    GCMAP_REQUIRE_SHARED_DATA("kitti07_submaps");
+    const std::string dir = test::shared_data() + "/kitti07_submaps";
+    reference = read_trajectory(dir + "/graph.txt");
+    for (int k = 0; k < 5; ++k) {
+      PointCloud c = read_point_cloud(dir + "/00000" + std::to_string(k) + "/points.bin", BinFields::xyz);
+      estimate_covariances(c);
+      auto v = std::make_shared<GaussianVoxelMap>(1.0);
+      v->insert(c);
+      v->finalize();
+      nodes.push_back({std::make_shared<const PointCloud>(std::move(c)), v});
+    }
+  }
+  Values solve(Values values) {
+    FactorGraph graph;
+    add_overlapping_pairs(graph, nodes, values, 0.025);
+    LevenbergMarquardt lm;
+    lm.optimize(graph, values, {0});
+    return values;
+  }
+  Trajectory reference;
+  std::vector<ScanNode> nodes;
+};
+
+TEST_F(Kitti07, PerturbedPosesComeBack) {
+  Values start;
+  for (int k = 0; k < 5; ++k) start[k] = reference.poses[k];
+  const Values optimum = solve(start);
+  // Our optimum vs the reference implementation's: measured up to 5.9 cm / 0.15 deg at cloud 4
+  // (27 m from the fixed cloud 0), whatever the voxel size; see the issue notes.
+  for (int k = 0; k < 5; ++k) {
+    EXPECT_LT(test::translation_error(optimum.at(k), reference.poses[k]), 0.07) << k;
+    EXPECT_LT(test::rotation_error_deg(optimum.at(k), reference.poses[k]), 0.2) << k;
+  }
+  std::mt19937_64 rng(2024);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int trial = 0; trial < 3; ++trial) {
+    Values perturbed = start;
+    for (int k = 1; k < 5; ++k) {
+      Vector6d d;
+      for (int a = 0; a < 3; ++a) d[a] = 0.1 * u(rng);
+      for (int a = 3; a < 6; ++a) d[a] = 0.3 * u(rng);
+      perturbed[k] = start[k] * se3_exp(d);
+    }
+    const Values result = solve(perturbed);
+    for (int k = 0; k < 5; ++k) {
+      EXPECT_LT(test::translation_error(result.at(k), optimum.at(k)), 0.03) << "trial " << trial << " pose " << k;
+      EXPECT_LT(test::rotation_error_deg(result.at(k), optimum.at(k)), 0.1) << "trial " << trial << " pose " << k;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace gcmap
