@@ -1,0 +1,159 @@
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+
+#include "commands.hpp"
+#include "gcmap/core/error.hpp"
+#include "gcmap/eval/map_entropy.hpp"
+#include "gcmap/eval/trajectory_metrics.hpp"
+#include "gcmap/io/point_cloud_io.hpp"
+#include "gcmap/io/trajectory_io.hpp"
+#include "gcmap/sim/simulator.hpp"
+#include "map_runner.hpp"
+
+namespace gcmap::cli {
+
+namespace {
+
+// Options shared by map and demo that override the config file.
+struct Overrides {
+  std::string config_file, global_mode, factor;
+  int window = -1;
+  double map_resolution = -1.0;
+  bool pcd = false;
+  int threads = 0;
+
+  void add(CLI::App* cmd) {
+    cmd->add_option("--config", config_file, "YAML configuration (see `gcmap config`)");
+    cmd->add_option("--global-mode", global_mode, "full (default) or sliding-window");
+    cmd->add_option("--window", window, "sliding-window: predecessors each submap connects to (default 5)");
+    cmd->add_option("--factor", factor, "vgicp (default) or se3 (relative-pose factors from scan matching)");
+    cmd->add_option("--map-resolution", map_resolution, "Voxel size of map.ply in m (default 0.1)");
+    cmd->add_flag("--pcd", pcd, "Also write map.pcd");
+    cmd->add_option("--threads", threads, "Worker threads (0 = all cores)")->capture_default_str();
+  }
+  MappingConfig resolve() const {
+    MappingConfig c = config_file.empty() ? MappingConfig{} : MappingConfig::load(config_file);
+    if (!global_mode.empty()) c.global.mode = global_mode;
+    if (!factor.empty()) c.global.factor = factor;
+    if (window >= 0) c.global.window = window;
+    if (map_resolution >= 0) c.output.map_resolution = map_resolution;
+    if (pcd) c.output.pcd = true;
+    try {
+      c.validate();
+    } catch (const Error& e) {
+      throw Error(std::string("bad option: ") + e.what());
+    }
+    return c;
+  }
+};
+
+}  // namespace
+
+void add_map(CLI::App& app, Runner& run) {
+  auto opt = std::make_shared<MapRunOptions>();
+  auto ov = std::make_shared<Overrides>();
+  auto* cmd = app.add_subcommand("map", "Map a LiDAR sequence: odometry, submaps, global matching-cost optimization");
+  cmd->add_option("input", opt->input, "KITTI sequence folder (velodyne/*.bin ...) or a folder of .bin/.pcd/.ply scans")->required();
+  cmd->add_option("-o,--output", opt->output, "Output folder")->required();
+  cmd->add_option("--initial-trajectory", opt->initial_trajectory, "KITTI or TUM poses to use instead of the built-in odometry");
+  cmd->add_option("--start", opt->start, "First scan index")->capture_default_str();
+  cmd->add_option("--max-frames", opt->max_frames, "Process at most this many scans (0 = all)")->capture_default_str();
+  cmd->add_flag("--quiet", opt->quiet, "No progress line");
+  ov->add(cmd);
+  cmd->footer("Writes trajectory.kitti/.tum, odometry.kitti, map.ply, graph.json, stats.json, config.yaml.");
+  cmd->callback([opt, ov, &run] {
+    run = [opt, ov] {
+      const auto threads = limit_threads(ov->threads);
+      opt->config = ov->resolve();
+      const MapRunResult r = run_mapping(*opt);
+      std::printf("{\"frames\":%zu,\"submaps\":%zu,\"factors\":%zu,\"seconds\":%.3f,\"frames_per_second\":%.2f}\n", r.frames,
+                  r.submaps, r.factors, r.seconds, r.fps);
+      return 0;
+    };
+  });
+}
+
+void add_demo(CLI::App& app, Runner& run) {
+  struct Options {
+    std::string output, scenario = "small";
+    int frames = 0;
+    uint64_t seed = 1;
+  };
+  auto opt = std::make_shared<Options>();
+  auto ov = std::make_shared<Overrides>();
+  auto* cmd = app.add_subcommand("demo", "Simulate a scenario, map it, and report accuracy against ground truth");
+  cmd->add_option("-o,--output", opt->output, "Working folder (default: a temporary folder, removed afterwards)");
+  cmd->add_option("--scenario", opt->scenario, "small, loop or corridor")->capture_default_str();
+  cmd->add_option("--frames", opt->frames, "Number of frames (0 = the scenario's default)")->capture_default_str();
+  cmd->add_option("--seed", opt->seed, "Simulation seed")->capture_default_str();
+  ov->add(cmd);
+  cmd->callback([opt, ov, &run] {
+    run = [opt, ov] {
+      namespace fs = std::filesystem;
+      const auto threads = limit_threads(ov->threads);
+      const bool temporary = opt->output.empty();
+      const fs::path dir = temporary ? fs::temp_directory_path() / ("gcmap_demo_" + std::to_string(::getpid())) : fs::path(opt->output);
+      struct Cleanup {
+        fs::path p;
+        bool on;
+        ~Cleanup() {
+          std::error_code ec;
+          if (on) fs::remove_all(p, ec);
+        }
+      } cleanup{dir, temporary};
+      sim::SimulationConfig sc;
+      sc.scenario = opt->scenario;
+      sc.frames = opt->frames;
+      sc.seed = opt->seed;
+      std::printf("gcmap demo: simulating the '%s' scenario...\n", sc.scenario.c_str());
+      std::fflush(stdout);
+      sim::write_simulation((dir / "sim").string(), sc);
+      MapRunOptions mo;
+      mo.input = (dir / "sim").string();
+      mo.output = (dir / "map").string();
+      mo.config = ov->resolve();
+      mo.quiet = false;
+      std::printf("mapping %s ...\n", mo.input.c_str());
+      std::fflush(stdout);
+      const MapRunResult r = run_mapping(mo);
+      const Poses gt = read_trajectory((dir / "sim" / "poses.txt").string()).poses;
+      const Poses odom = read_trajectory((dir / "map" / "odometry.kitti").string()).poses;
+      const Poses est = read_trajectory((dir / "map" / "trajectory.kitti").string()).poses;
+      const KittiError ko = kitti_relative_error(gt, odom), ke = kitti_relative_error(gt, est);
+      const AbsoluteError ao = absolute_trajectory_error(gt, odom), ae = absolute_trajectory_error(gt, est);
+      const MapEntropy mme = mean_map_entropy(read_point_cloud((dir / "map" / "map.ply").string()));
+      std::printf("\n%-28s %12s %12s\n", "", "odometry", "global");
+      std::printf("%-28s %12.3f %12.3f\n", "ATE RMSE [m]", ao.rmse, ae.rmse);
+      std::printf("%-28s %12.3f %12.3f\n", "ATE max [m]", ao.max, ae.max);
+      if (ke.num_segments) {
+        std::printf("%-28s %12.3f %12.3f\n", "KITTI translation [%]", ko.translation_percent, ke.translation_percent);
+        std::printf("%-28s %12.4f %12.4f\n", "KITTI rotation [deg/100m]", ko.rotation_deg_per_100m, ke.rotation_deg_per_100m);
+      } else {
+        std::printf("%-28s %s\n", "KITTI relative error", "n/a (trajectory shorter than 100 m)");
+      }
+      std::printf("%-28s %12.3f\n", "mean map entropy", mme.mean);
+      std::printf("%-28s %12zu\n", "frames", r.frames);
+      std::printf("%-28s %12zu\n", "submaps", r.submaps);
+      std::printf("%-28s %12zu\n", "global factors", r.factors);
+      std::printf("%-28s %12.2f\n", "frames per second", r.fps);
+      std::printf("outputs: %s\n", temporary ? "(temporary, removed)" : (dir / "map").string().c_str());
+      return 0;
+    };
+  });
+}
+
+void add_config(CLI::App& app, Runner& run) {
+  auto file = std::make_shared<std::string>();
+  auto* cmd = app.add_subcommand("config", "Print the effective mapping configuration as YAML");
+  cmd->add_option("--config", *file, "Load this YAML first (validates it)");
+  cmd->callback([file, &run] {
+    run = [file] {
+      const MappingConfig c = file->empty() ? MappingConfig{} : MappingConfig::load(*file);
+      std::cout << c.to_yaml();
+      return 0;
+    };
+  });
+}
+
+}  // namespace gcmap::cli

@@ -1,0 +1,133 @@
+#include "gcmap/mapping/config.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <functional>
+#include <map>
+#include <sstream>
+
+#include "gcmap/core/error.hpp"
+#include "gcmap/io/file.hpp"
+
+namespace gcmap {
+
+namespace {
+
+// Visits every (section, key, field) once, for loading and dumping alike.
+template <typename Config, typename Visitor>
+void visit(Config& c, Visitor&& v) {
+  v("preprocess", "min_range", c.preprocess.min_range);
+  v("preprocess", "max_range", c.preprocess.max_range);
+  v("preprocess", "downsample", c.preprocess.downsample);
+  v("preprocess", "num_neighbors", c.preprocess.num_neighbors);
+  v("preprocess", "kitti_vertical_correction", c.preprocess.kitti_vertical_correction);
+  v("preprocess", "remove_dynamic_labels", c.preprocess.remove_dynamic_labels);
+  v("odometry", "voxel_resolution", c.odometry.voxel_resolution);
+  v("odometry", "model_keyframes", c.odometry.model_keyframes);
+  v("odometry", "keyframe_distance", c.odometry.keyframe_distance);
+  v("odometry", "keyframe_angle_deg", c.odometry.keyframe_angle_deg);
+  v("odometry", "max_iterations", c.odometry.max_iterations);
+  v("local", "th_max", c.local.th_max);
+  v("local", "th_min", c.local.th_min);
+  v("local", "max_keyframes", c.local.max_keyframes);
+  v("local", "voxel_resolution", c.local.voxel_resolution);
+  v("local", "submap_downsample", c.local.submap_downsample);
+  v("local", "max_submap_points", c.local.max_submap_points);
+  v("local", "max_iterations", c.local.max_iterations);
+  v("global", "th_min", c.global.th_min);
+  v("global", "voxel_resolution", c.global.voxel_resolution);
+  v("global", "mode", c.global.mode);
+  v("global", "window", c.global.window);
+  v("global", "factor", c.global.factor);
+  v("global", "max_iterations", c.global.max_iterations);
+  v("global", "final_iterations", c.global.final_iterations);
+  v("output", "map_resolution", c.output.map_resolution);
+  v("output", "pcd", c.output.pcd);
+}
+
+}  // namespace
+
+MappingConfig MappingConfig::load(const std::string& path) {
+  const std::string text = read_file(path);
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    throw Error(path + ": YAML syntax error at line " + std::to_string(e.mark.line + 1));
+  }
+  MappingConfig c;
+  if (root.IsNull()) return c;
+  if (!root.IsMap()) throw Error(path + ": expected a mapping of sections");
+  std::map<std::string, std::map<std::string, bool>> known;
+  visit(c, [&](const char* s, const char* k, auto&) { known[s][k] = true; });
+  for (const auto& section : root) {
+    const std::string s = section.first.as<std::string>();
+    if (!known.count(s)) throw Error(path + ": unknown section '" + s + "'");
+    if (!section.second.IsMap()) throw Error(path + ": section '" + s + "' must be a mapping");
+    for (const auto& kv : section.second) {
+      const std::string k = kv.first.as<std::string>();
+      if (!known[s].count(k)) throw Error(path + ": unknown key '" + s + "." + k + "'");
+    }
+  }
+  const YAML::Node& croot = root;
+  visit(c, [&](const char* s, const char* k, auto& field) {
+    const YAML::Node section = croot[s];
+    if (!section.IsDefined() || !section.IsMap()) return;
+    const YAML::Node node = section[k];
+    if (!node.IsDefined()) return;
+    try {
+      field = node.as<std::decay_t<decltype(field)>>();
+    } catch (const YAML::Exception&) {
+      throw Error(path + ": key '" + std::string(s) + "." + k + "' has an unreadable value");
+    }
+  });
+  try {
+    c.validate();
+  } catch (const Error& e) {
+    throw Error(path + ": " + e.what());
+  }
+  return c;
+}
+
+std::string MappingConfig::to_yaml() const {
+  std::ostringstream out;
+  std::string current;
+  MappingConfig copy = *this;
+  visit(copy, [&](const char* s, const char* k, auto& field) {
+    if (current != s) {
+      out << s << ":\n";
+      current = s;
+    }
+    out << "  " << k << ": ";
+    if constexpr (std::is_same_v<std::decay_t<decltype(field)>, bool>) out << (field ? "true" : "false");
+    else out << field;
+    out << "\n";
+  });
+  return out.str();
+}
+
+void MappingConfig::validate() const {
+  auto need = [](bool ok, const std::string& what) {
+    if (!ok) throw Error(what);
+  };
+  need(preprocess.min_range >= 0 && preprocess.max_range > preprocess.min_range, "preprocess.max_range must exceed preprocess.min_range >= 0");
+  need(preprocess.downsample > 0, "preprocess.downsample must be positive");
+  need(preprocess.num_neighbors >= 4, "preprocess.num_neighbors must be >= 4");
+  need(odometry.voxel_resolution > 0, "odometry.voxel_resolution must be positive");
+  need(odometry.model_keyframes >= 1, "odometry.model_keyframes must be >= 1");
+  need(odometry.max_iterations >= 1, "odometry.max_iterations must be >= 1");
+  need(local.th_max > 0 && local.th_max <= 1, "local.th_max must be in (0, 1]");
+  need(local.th_min >= 0 && local.th_min < local.th_max, "local.th_min must be in [0, local.th_max)");
+  need(local.max_keyframes >= 2, "local.max_keyframes must be >= 2");
+  need(local.voxel_resolution > 0 && local.submap_downsample > 0, "local resolutions must be positive");
+  need(local.max_submap_points >= 1000, "local.max_submap_points must be >= 1000");
+  need(global.th_min >= 0 && global.th_min <= 1, "global.th_min must be in [0, 1]");
+  need(global.voxel_resolution > 0, "global.voxel_resolution must be positive");
+  need(global.mode == "full" || global.mode == "sliding-window", "global.mode must be full or sliding-window");
+  need(global.window >= 1, "global.window must be >= 1");
+  need(global.factor == "vgicp" || global.factor == "se3", "global.factor must be vgicp or se3");
+  need(global.max_iterations >= 1 && global.final_iterations >= 1, "global iteration limits must be >= 1");
+  need(output.map_resolution > 0, "output.map_resolution must be positive");
+}
+
+}  // namespace gcmap

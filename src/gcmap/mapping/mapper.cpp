@@ -1,0 +1,249 @@
+#include "gcmap/mapping/mapper.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "gcmap/core/preprocess.hpp"
+#include "gcmap/core/timer.hpp"
+#include "gcmap/registration/registration.hpp"
+#include "gcmap/registration/vgicp.hpp"
+
+namespace gcmap {
+
+double TimingStats::mean() const {
+  if (samples_ms.empty()) return 0.0;
+  double s = 0;
+  for (double v : samples_ms) s += v;
+  return s / samples_ms.size();
+}
+double TimingStats::stddev() const {
+  if (samples_ms.size() < 2) return 0.0;
+  const double m = mean();
+  double s = 0;
+  for (double v : samples_ms) s += (v - m) * (v - m);
+  return std::sqrt(s / samples_ms.size());
+}
+double TimingStats::max() const {
+  return samples_ms.empty() ? 0.0 : *std::max_element(samples_ms.begin(), samples_ms.end());
+}
+
+namespace {
+LMConfig lm_config(int iterations) {
+  LMConfig c;
+  c.max_iterations = iterations;
+  return c;
+}
+}  // namespace
+
+Mapper::Mapper(const MappingConfig& config) : config_(config), lm_(lm_config(config.global.max_iterations)) {
+  config_.validate();
+}
+
+void Mapper::add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom) {
+  if (frame != static_cast<int>(frames_.size())) throw std::logic_error("Mapper: frames must be consecutive");
+  frames_.push_back({-1, T_odom});
+  keyframe_location_.emplace_back(-1, -1);
+  auto anchor_to_last = [&] {
+    if (!open_.empty()) frames_.back().anchor = open_.back().frame;
+    else if (!submaps_.empty()) frames_.back().anchor = submaps_.back().keyframes.back();
+  };
+  if (!cloud || cloud->size() < 100) {
+    anchor_to_last();
+    return;
+  }
+  if (!open_.empty()) {
+    const Keyframe& last = open_.back();
+    const double ov = overlap(*cloud, *last.voxels, last.T_odom.inverse() * T_odom);
+    if (ov > config_.local.th_max) {
+      anchor_to_last();
+      return;
+    }
+  }
+  auto voxels = std::make_shared<GaussianVoxelMap>(config_.local.voxel_resolution);
+  voxels->insert(*cloud);
+  voxels->finalize();
+  open_.push_back({frame, T_odom, cloud, voxels});
+  frames_.back().anchor = frame;
+  if (open_.size() >= 2) {
+    const Keyframe& first = open_.front();
+    const double ov = overlap(*cloud, *first.voxels, first.T_odom.inverse() * T_odom);
+    if (ov < config_.local.th_min || static_cast<int>(open_.size()) >= config_.local.max_keyframes) close_submap();
+  }
+}
+
+void Mapper::close_submap() {
+  if (open_.empty()) return;
+  Submap s;
+  s.id = static_cast<int>(submaps_.size());
+  s.T_odom = open_.front().T_odom;
+  const int n = static_cast<int>(open_.size());
+  Values local;
+  for (int k = 0; k < n; ++k) local[k] = s.T_odom.inverse() * open_[k].T_odom;
+  if (n >= 2) {
+    // Fully connected: every keyframe pair gets a VGICP factor (source later, target earlier).
+    Stopwatch w;
+    FactorGraph g;
+    for (int b = 1; b < n; ++b)
+      for (int a = 0; a < b; ++a) g.add(std::make_shared<MatchingCostFactor>(b, a, open_[b].cloud, open_[a].voxels));
+    stats_.local_factors.add(w.lap_ms());
+    LevenbergMarquardt lm(lm_config(config_.local.max_iterations));
+    lm.optimize(g, local, {0});
+    stats_.local_optimization.add(w.lap_ms());
+  }
+  // Merge: keyframe clouds in the submap frame, voxel-averaged means and covariances.
+  PointCloud merged;
+  for (int k = 0; k < n; ++k) {
+    s.keyframes.push_back(open_[k].frame);
+    s.T_submap_keyframe.push_back(local.at(k));
+    const PointCloud c = transformed(*open_[k].cloud, local.at(k));
+    merged.points.insert(merged.points.end(), c.points.begin(), c.points.end());
+    merged.covs.insert(merged.covs.end(), c.covs.begin(), c.covs.end());
+  }
+  merged = voxel_downsample(merged, config_.local.submap_downsample);
+  if (static_cast<int>(merged.size()) > config_.local.max_submap_points) {
+    // Even stride keeps the cap deterministic and spatially uniform (points are in voxel order).
+    std::vector<char> keep(merged.size(), 0);
+    const double stride = static_cast<double>(merged.size()) / config_.local.max_submap_points;
+    for (int i = 0; i < config_.local.max_submap_points; ++i) keep[static_cast<size_t>(i * stride)] = 1;
+    merged.filter(keep);
+  }
+  auto voxels = std::make_shared<GaussianVoxelMap>(config_.global.voxel_resolution);
+  voxels->insert(merged);
+  voxels->finalize();
+  s.cloud = std::make_shared<const PointCloud>(std::move(merged));
+  s.voxels = voxels;
+  for (int k = 0; k < n; ++k) keyframe_location_[open_[k].frame] = {s.id, k};
+  open_.clear();
+  insert_submap(std::move(s));
+}
+
+void Mapper::insert_submap(Submap s) {
+  const int id = s.id;
+  if (id == 0) {
+    values_[0] = Eigen::Isometry3d::Identity();
+  } else {
+    const Submap& prev = submaps_.back();
+    values_[id] = values_.at(prev.id) * (prev.T_odom.inverse() * s.T_odom);
+  }
+  submaps_.push_back(std::move(s));
+  const Submap& cur = submaps_.back();
+  if (id == 0) {
+    stats_.per_submap.push_back({1, 0, 0.0});
+    return;
+  }
+
+  Stopwatch w;
+  const int first = config_.global.mode == "sliding-window" ? std::max(0, id - config_.global.window) : 0;
+  std::vector<std::pair<int, double>> candidates;
+  for (int j = first; j < id; ++j) candidates.emplace_back(j, 0.0);
+  tbb::parallel_for(size_t{0}, candidates.size(), [&](size_t k) {
+    const int j = candidates[k].first;
+    candidates[k].second = overlap(*cur.cloud, *submaps_[j].voxels, values_.at(j).inverse() * values_.at(id));
+  });
+  bool connected_to_past = false;
+  for (const auto& [j, ov] : candidates) {
+    if (ov < config_.global.th_min) continue;
+    if (config_.global.factor == "se3") {
+      // Ablation "Proposed (SE3)": a relative-pose constraint from scan matching, Hessian information.
+      const RegistrationResult r = align_vgicp(*cur.cloud, *submaps_[j].voxels, values_.at(j).inverse() * values_.at(id));
+      graph_.add(std::make_shared<RelativePoseFactor>(j, id, r.T_target_source, r.H, RobustKernel::huber(10.0)));
+      factor_info_.push_back({"se3", id, j, ov, 0.0});
+    } else {
+      graph_.add(std::make_shared<MatchingCostFactor>(id, j, cur.cloud, submaps_[j].voxels));
+      factor_info_.push_back({"matching_cost", id, j, ov, 0.0});
+    }
+    connected_to_past = true;
+  }
+  if (!connected_to_past) {
+    // Only where the submap would otherwise be disconnected.
+    const Submap& prev = submaps_[id - 1];
+    Matrix6d info = Matrix6d::Identity();
+    info.diagonal() << 1e4, 1e4, 1e4, 1e3, 1e3, 1e3;
+    graph_.add(std::make_shared<RelativePoseFactor>(id - 1, id, prev.T_odom.inverse() * cur.T_odom, info));
+    factor_info_.push_back({"odometry", id, id - 1, 0.0, 0.0});
+  }
+  stats_.global_factors.add(w.lap_ms());
+  lm_.optimize(graph_, values_, {0});
+  const double opt_ms = w.lap_ms();
+  stats_.global_optimization.add(opt_ms);
+  stats_.per_submap.push_back({id + 1, static_cast<int>(graph_.factors.size()), opt_ms});
+}
+
+void Mapper::finish() {
+  close_submap();
+  if (graph_.factors.empty()) return;
+  LevenbergMarquardt final_lm(lm_config(config_.global.final_iterations));
+  Stopwatch w;
+  final_lm.optimize(graph_, values_, {0});
+  stats_.global_optimization.add(w.ms());
+}
+
+std::vector<Eigen::Isometry3d> Mapper::trajectory() const {
+  std::vector<Eigen::Isometry3d> out(frames_.size(), Eigen::Isometry3d::Identity());
+  auto keyframe_world = [&](int kf, Eigen::Isometry3d& T) {
+    const auto [s, k] = keyframe_location_[kf];
+    if (s >= 0) {
+      T = values_.at(s) * submaps_[s].T_submap_keyframe[k];
+      return true;
+    }
+    // In the open submap (not closed yet): place from the last submap by odometry.
+    if (submaps_.empty()) {
+      T = frames_[kf].T_odom;
+      return true;
+    }
+    const Submap& last = submaps_.back();
+    T = values_.at(last.id) * last.T_odom.inverse() * frames_[kf].T_odom;
+    return true;
+  };
+  for (size_t f = 0; f < frames_.size(); ++f) {
+    const int anchor = frames_[f].anchor;
+    if (anchor < 0) {
+      out[f] = frames_[f].T_odom;
+      continue;
+    }
+    Eigen::Isometry3d T_anchor;
+    keyframe_world(anchor, T_anchor);
+    out[f] = T_anchor * frames_[anchor].T_odom.inverse() * frames_[f].T_odom;
+  }
+  const Eigen::Isometry3d T0_inv = out.empty() ? Eigen::Isometry3d::Identity() : out.front().inverse();
+  for (auto& T : out) T = normalized(T0_inv * T);
+  return out;
+}
+
+std::vector<FactorInfo> Mapper::factors() const {
+  std::vector<FactorInfo> out = factor_info_;
+  tbb::parallel_for(size_t{0}, graph_.factors.size(), [&](size_t f) {
+    const Factor& factor = *graph_.factors[f];
+    const Eigen::Isometry3d* poses[2] = {&values_.at(factor.keys()[0]), &values_.at(factor.keys()[1])};
+    if (const auto* m = dynamic_cast<const MatchingCostFactor*>(&factor)) {
+      out[f].error = evaluate_vgicp(m->source(), m->target(), poses[1]->inverse() * *poses[0]).error;
+    } else if (const auto* r = dynamic_cast<const RelativePoseFactor*>(&factor)) {
+      RelativePoseFactor copy = *r;  // linearize() records the robust weight in the factor
+      FactorLinearization lin;
+      copy.linearize(poses, lin);
+      out[f].error = lin.error;
+    }
+  });
+  return out;
+}
+
+PointCloud Mapper::assemble_map(double resolution) const {
+  PointCloud map;
+  for (const Submap& s : submaps_) {
+    const PointCloud c = transformed(*s.cloud, values_.at(s.id));
+    map.points.insert(map.points.end(), c.points.begin(), c.points.end());
+  }
+  if (!frames_.empty() && !submaps_.empty()) {
+    // Express the map in the output frame (first frame identity), like the trajectory.
+    const auto [s, k] = keyframe_location_[0];
+    if (s >= 0) {
+      const Eigen::Isometry3d T0 = values_.at(s) * submaps_[s].T_submap_keyframe[k];
+      map = transformed(map, T0.inverse());
+    }
+  }
+  return voxel_downsample(map, resolution);
+}
+
+}  // namespace gcmap

@@ -1,0 +1,94 @@
+#pragma once
+// Local mapping (overlap-managed submaps, fully connected VGICP inside) and global mapping (a
+// matching-cost factor to every overlapping past submap), paper Section III.
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "gcmap/graph/levenberg_marquardt.hpp"
+#include "gcmap/mapping/config.hpp"
+
+namespace gcmap {
+
+struct Submap {
+  int id = 0;
+  std::vector<int> keyframes;                     // frame indices
+  std::vector<Eigen::Isometry3d> T_submap_keyframe;  // fixed after the local optimization
+  Eigen::Isometry3d T_odom = Eigen::Isometry3d::Identity();  // odometry pose of the submap origin
+  std::shared_ptr<const PointCloud> cloud;        // merged, in the submap frame
+  std::shared_ptr<const GaussianVoxelMap> voxels; // at global.voxel_resolution
+};
+
+struct FactorInfo {
+  std::string type;  // matching_cost, odometry, se3
+  int source = 0, target = 0;
+  double overlap = 0.0;
+  double error = 0.0;
+};
+
+struct TimingStats {
+  std::vector<double> samples_ms;
+  void add(double ms) { samples_ms.push_back(ms); }
+  double mean() const;
+  double stddev() const;
+  double max() const;
+};
+
+struct MapperStats {
+  TimingStats local_factors, local_optimization, global_factors, global_optimization;
+  struct PerSubmap {
+    int num_submaps, num_factors;
+    double global_optimization_ms;
+  };
+  std::vector<PerSubmap> per_submap;
+};
+
+class Mapper {
+ public:
+  explicit Mapper(const MappingConfig& config);
+
+  // Feeds a preprocessed frame (with covariances) and its odometry pose. Frames must come in order;
+  // unusable frames (nullptr) are placed by odometry only.
+  void add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom);
+  // Closes the open submap and runs the final global optimization.
+  void finish();
+
+  // World pose of every frame added (skipped frames via odometry from their anchor keyframe),
+  // expressed so that the first frame is the identity.
+  std::vector<Eigen::Isometry3d> trajectory() const;
+  const std::vector<Submap>& submaps() const { return submaps_; }
+  Eigen::Isometry3d submap_pose(int id) const { return values_.at(id); }
+  std::vector<FactorInfo> factors() const;
+  const MapperStats& stats() const { return stats_; }
+  size_t num_global_factors() const { return graph_.factors.size(); }
+  // All submaps in the world frame, voxel-downsampled.
+  PointCloud assemble_map(double resolution) const;
+
+ private:
+  struct Keyframe {
+    int frame;
+    Eigen::Isometry3d T_odom;
+    std::shared_ptr<const PointCloud> cloud;
+    std::shared_ptr<GaussianVoxelMap> voxels;  // local resolution, keyframe frame
+  };
+  struct FrameRecord {
+    int anchor = -1;  // keyframe frame index this frame is placed from
+    Eigen::Isometry3d T_odom;
+  };
+
+  void close_submap();
+  void insert_submap(Submap submap);
+
+  MappingConfig config_;
+  std::vector<Keyframe> open_;  // keyframes of the submap being built
+  std::vector<Submap> submaps_;
+  std::vector<FrameRecord> frames_;
+  std::vector<std::pair<int, int>> keyframe_location_;  // per frame: (submap, index in submap) or (-1, -1)
+  FactorGraph graph_;
+  std::vector<FactorInfo> factor_info_;
+  Values values_;
+  LevenbergMarquardt lm_;
+  MapperStats stats_;
+};
+
+}  // namespace gcmap

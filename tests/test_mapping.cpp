@@ -1,0 +1,137 @@
+// The mapping system end to end through the gcmap binary, on the simulator's small scenario.
+#include <fstream>
+#include <regex>
+
+#include "gcmap/core/error.hpp"
+#include "gcmap/eval/trajectory_metrics.hpp"
+#include "gcmap/io/point_cloud_io.hpp"
+#include "gcmap/io/trajectory_io.hpp"
+#include "gcmap/mapping/config.hpp"
+#include "gcmap/sim/simulator.hpp"
+#include "test_util.hpp"
+
+namespace gcmap {
+namespace {
+
+int run(const std::string& args, std::string* err = nullptr) {
+  const std::string log = std::filesystem::temp_directory_path() / ("gcmap_map_test_" + std::to_string(::getpid()) + ".err");
+  const int status = std::system((std::string(GCMAP_CLI) + " " + args + " >/dev/null 2>" + log).c_str());
+  if (err) {
+    std::ifstream in(log);
+    *err = std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  }
+  std::filesystem::remove(log);
+  return WEXITSTATUS(status);
+}
+
+std::string slurp(const std::string& p) {
+  std::ifstream in(p);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+class SmallScenario : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir = new test::TempDir();
+    sim::SimulationConfig cfg;
+    cfg.scenario = "small";
+    sim::write_simulation(*dir / "sim", cfg);
+  }
+  static void TearDownTestSuite() { delete dir; }
+  static test::TempDir* dir;
+};
+test::TempDir* SmallScenario::dir = nullptr;
+
+TEST_F(SmallScenario, GlobalMappingIsAccurateAndClosesTheLoop) {
+  std::string err;
+  ASSERT_EQ(run("map " + (*dir / "sim") + " -o " + (*dir / "out") + " --quiet", &err), 0) << err;
+  const Poses gt = read_trajectory(*dir / "sim/poses.txt").poses;
+  const Poses est = read_trajectory(*dir / "out/trajectory.kitti").poses;
+  const Poses odom = read_trajectory(*dir / "out/odometry.kitti").poses;
+  ASSERT_EQ(est.size(), gt.size());  // one pose for every input frame
+  ASSERT_EQ(odom.size(), gt.size());
+  EXPECT_LT(test::translation_error(est.front(), Eigen::Isometry3d::Identity()), 1e-9);
+  const double ate = absolute_trajectory_error(gt, est).rmse, ate_odom = absolute_trajectory_error(gt, odom).rmse;
+  EXPECT_LT(ate, 0.10);
+  EXPECT_LT(ate, ate_odom);
+  EXPECT_EQ(read_trajectory(*dir / "out/trajectory.tum").size(), gt.size());
+  EXPECT_GT(read_point_cloud(*dir / "out/map.ply").size(), 10000u);
+
+  // The revisit of the start connects the last submap to the first ones.
+  const std::string graph = slurp(*dir / "out/graph.json");
+  const std::regex re("\"type\":\"matching_cost\",\"source\":(\\d+),\"target\":(\\d+)");
+  int widest = 0;
+  for (auto it = std::sregex_iterator(graph.begin(), graph.end(), re); it != std::sregex_iterator(); ++it)
+    widest = std::max(widest, std::stoi((*it)[1]) - std::stoi((*it)[2]));
+  size_t submaps = 0;
+  for (size_t pos = graph.find("\"keyframes\":"); pos != std::string::npos; pos = graph.find("\"keyframes\":", pos + 1)) ++submaps;
+  EXPECT_GE(submaps, 4u);
+  EXPECT_GE(widest, static_cast<int>(submaps) - 2) << graph.substr(0, 400);
+  for (const char* f : {"stats.json", "config.yaml", "odometry.kitti"}) EXPECT_TRUE(std::filesystem::exists(*dir / ("out/" + std::string(f))));
+  EXPECT_NE(slurp(*dir / "out/stats.json").find("\"global_optimization\":{\"mean_ms\":"), std::string::npos);
+}
+
+TEST_F(SmallScenario, CorruptScanInTheMiddleIsSkipped) {
+  // A copy of the first 20 frames with frame 10 truncated.
+  const std::string seq = *dir / "corrupt";
+  std::filesystem::create_directories(seq + "/velodyne");
+  for (int k = 0; k < 20; ++k) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "/velodyne/%06d.bin", k);
+    std::filesystem::copy_file(*dir / "sim" + name, seq + name);
+    if (k == 10) std::filesystem::resize_file(seq + name, 1001);
+  }
+  std::string err;
+  ASSERT_EQ(run("map " + seq + " -o " + (*dir / "corrupt_out") + " --quiet", &err), 0) << err;
+  EXPECT_NE(err.find("000010.bin"), std::string::npos) << err;
+  EXPECT_EQ(read_trajectory(*dir / "corrupt_out/trajectory.kitti").size(), 20u);
+}
+
+TEST(Mapping, BadInputGivesOneLineErrors) {
+  test::TempDir dir;
+  std::filesystem::create_directories(dir / "empty");
+  std::string err;
+  EXPECT_EQ(run("map " + (dir / "empty") + " -o " + (dir / "out"), &err), 2);
+  EXPECT_NE(err.find("no .bin, .pcd or .ply scans"), std::string::npos) << err;
+
+  std::ofstream(dir / "bad.yaml") << "local:\n  th_maxx: 0.9\n";
+  EXPECT_EQ(run("config --config " + (dir / "bad.yaml"), &err), 2);
+  EXPECT_NE(err.find("unknown key 'local.th_maxx'"), std::string::npos) << err;
+  std::ofstream(dir / "bad2.yaml") << "global:\n  th_min: banana\n";
+  EXPECT_EQ(run("config --config " + (dir / "bad2.yaml"), &err), 2);
+  EXPECT_NE(err.find("global.th_min"), std::string::npos) << err;
+  std::ofstream(dir / "bad3.yaml") << "local:\n  th_min: 0.99\n";
+  EXPECT_EQ(run("config --config " + (dir / "bad3.yaml"), &err), 2);
+  EXPECT_NE(err.find("local.th_min"), std::string::npos) << err;
+
+  // Unwritable output: a path below a regular file.
+  std::filesystem::create_directories(dir / "seq");
+  std::ofstream(dir / "seq/000000.bin") << std::string(16 * 200, '\0');
+  std::ofstream(dir / "file") << "x";
+  EXPECT_EQ(run("map " + (dir / "seq") + " -o " + (dir / "file/out"), &err), 2);
+  EXPECT_NE(err.find("file/out"), std::string::npos) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+}
+
+TEST(Mapping, ConfigRoundTripsThroughYaml) {
+  test::TempDir dir;
+  MappingConfig c;
+  c.local.th_max = 0.9;
+  c.global.mode = "sliding-window";
+  c.output.pcd = true;
+  std::ofstream(dir / "c.yaml") << c.to_yaml();
+  const MappingConfig back = MappingConfig::load(dir / "c.yaml");
+  EXPECT_EQ(back.local.th_max, 0.9);
+  EXPECT_EQ(back.global.mode, "sliding-window");
+  EXPECT_TRUE(back.output.pcd);
+  EXPECT_EQ(back.to_yaml(), c.to_yaml());
+  // Paper defaults.
+  const MappingConfig d;
+  EXPECT_EQ(d.local.th_max, 0.95);
+  EXPECT_EQ(d.local.th_min, 0.10);
+  EXPECT_EQ(d.local.max_keyframes, 15);
+  EXPECT_EQ(d.global.th_min, 0.025);
+}
+
+}  // namespace
+}  // namespace gcmap
