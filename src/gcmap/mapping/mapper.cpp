@@ -182,20 +182,13 @@ void Mapper::finish() {
 
 std::vector<Eigen::Isometry3d> Mapper::trajectory() const {
   std::vector<Eigen::Isometry3d> out(frames_.size(), Eigen::Isometry3d::Identity());
-  auto keyframe_world = [&](int kf, Eigen::Isometry3d& T) {
+  auto keyframe_world = [&](int kf) -> Eigen::Isometry3d {
     const auto [s, k] = keyframe_location_[kf];
-    if (s >= 0) {
-      T = values_.at(s) * submaps_[s].T_submap_keyframe[k];
-      return true;
-    }
-    // In the open submap (not closed yet): place from the last submap by odometry.
-    if (submaps_.empty()) {
-      T = frames_[kf].T_odom;
-      return true;
-    }
+    if (s >= 0) return values_.at(s) * submaps_[s].T_submap_keyframe[k];
+    // A keyframe of the open submap (only before finish()): placed from the last submap by odometry.
+    if (submaps_.empty()) return frames_[kf].T_odom;
     const Submap& last = submaps_.back();
-    T = values_.at(last.id) * last.T_odom.inverse() * frames_[kf].T_odom;
-    return true;
+    return values_.at(last.id) * last.T_odom.inverse() * frames_[kf].T_odom;
   };
   for (size_t f = 0; f < frames_.size(); ++f) {
     const int anchor = frames_[f].anchor;
@@ -203,9 +196,7 @@ std::vector<Eigen::Isometry3d> Mapper::trajectory() const {
       out[f] = frames_[f].T_odom;
       continue;
     }
-    Eigen::Isometry3d T_anchor;
-    keyframe_world(anchor, T_anchor);
-    out[f] = T_anchor * frames_[anchor].T_odom.inverse() * frames_[f].T_odom;
+    out[f] = keyframe_world(anchor) * frames_[anchor].T_odom.inverse() * frames_[f].T_odom;
   }
   const Eigen::Isometry3d T0_inv = out.empty() ? Eigen::Isometry3d::Identity() : out.front().inverse();
   for (auto& T : out) T = normalized(T0_inv * T);
