@@ -155,14 +155,9 @@ TEST(LevenbergMarquardt, SyntheticTenFramesConvergeToGroundTruth) {
     EXPECT_LT(test::translation_error(values[k], truth[k]), 0.03) << k;
     EXPECT_LT(test::rotation_error_deg(values[k], truth[k]), 0.1) << k;
   }
-  // Accepted steps never increase the error LM judges them by, and the error re-associated at
-  // each accepted point ends below where it started.
-  double previous = r.initial_error;
-  for (const LMIteration& it : r.history) {
-    EXPECT_GT(it.trials, 0);
-    previous = it.error;
-  }
-  EXPECT_LT(previous, r.initial_error);
+  // The re-associated error at the last accepted point ends below where it started.
+  ASSERT_FALSE(r.history.empty());
+  EXPECT_LT(r.history.back().error, r.initial_error);
 }
 
 TEST(LevenbergMarquardt, NeverAcceptsACostIncrease) {

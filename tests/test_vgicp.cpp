@@ -61,14 +61,11 @@ Eigen::Vector3d residual(const Scene& s, const FrozenTerms& f, size_t n, const E
 TEST(Vgicp, BlocksMatchNumericDifferentiation) {
   std::mt19937_64 rng(21);
   for (int trial = 0; trial < 3; ++trial) {
-    const Eigen::Isometry3d Ti = test::random_pose(rng, 0.5, 3.0);
     const Eigen::Isometry3d Tj = test::random_pose(rng, 0.5, 3.0);
     const Eigen::Isometry3d T_true = test::random_pose(rng, 0.05, 0.3);
     const Scene s = make_scene(T_true);
     // Linearize near (not at) the true alignment so residuals are non-trivial.
-    const Eigen::Isometry3d T_ji = Tj.inverse() * Ti;
     const Eigen::Isometry3d Ti_lin = Tj * T_true * se3_exp((Vector6d() << 0.01, -0.02, 0.01, 0.1, 0.05, -0.1).finished());
-    (void)T_ji;
     const VgicpLinearization lin = linearize_vgicp(s.source, s.voxels, Tj.inverse() * Ti_lin);
     const FrozenTerms f = freeze(s, Tj.inverse() * Ti_lin);
     ASSERT_EQ(f.points.size(), lin.num_inliers);
