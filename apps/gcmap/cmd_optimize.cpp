@@ -80,11 +80,7 @@ void add_optimize(CLI::App& app, Runner& run) {
       t["total"] = r.total_ms;
       out["time_ms"] = t;
       Json poses = Json::array();
-      for (const auto& T : traj.poses) {
-        double v[7];
-        pose_to_xyz_quat(T, v);
-        poses.push_back(Json::Array(v, v + 7));
-      }
+      for (const auto& T : traj.poses) poses.push_back(pose_json(T));
       out["poses"] = poses;
       std::cout << out.dump() << std::endl;
       return 0;

@@ -1,9 +1,12 @@
 #include "map_runner.hpp"
 
+#include "commands.hpp"
+
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 
@@ -126,7 +129,7 @@ MapRunResult run_mapping(const MapRunOptions& o) {
     t_pre.add(w.lap_ms());
     Eigen::Isometry3d T;
     if (!o.initial_trajectory.empty()) {
-      T = initial.poses[0 + o.start].inverse() * initial.poses[f + o.start];
+      T = initial.poses[o.start].inverse() * initial.poses[f + o.start];
       odometry.set_pose(T);
     } else if (cloud) {
       T = odometry.track(cloud);
@@ -174,9 +177,7 @@ MapRunResult run_mapping(const MapRunOptions& o) {
   for (const Submap& s : mapper.submaps()) {
     Json j = Json::object();
     j["id"] = s.id;
-    double v[7];
-    pose_to_xyz_quat(mapper.submap_pose(s.id), v);
-    j["pose"] = Json::Array(v, v + 7);
+    j["pose"] = pose_json(mapper.submap_pose(s.id));
     j["first_frame"] = s.keyframes.front() + o.start;
     j["last_frame"] = s.keyframes.back() + o.start;
     j["keyframes"] = s.keyframes.size();

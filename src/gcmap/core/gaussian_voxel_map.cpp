@@ -64,12 +64,6 @@ void GaussianVoxelMap::finalize() {
   }
 }
 
-size_t GaussianVoxelMap::memory_bytes() const {
-  return slots_.size() * sizeof(Slot) +
-         coords_.size() * (sizeof(Eigen::Vector3i) + sizeof(int) + sizeof(Eigen::Vector3d) + sizeof(Eigen::Matrix3d) +
-                           sizeof(Eigen::Vector3f) + sizeof(Eigen::Matrix3f));
-}
-
 double overlap(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& T) {
   if (source.empty()) return 0.0;
   const Eigen::Matrix3f R = T.linear().cast<float>();

@@ -58,7 +58,6 @@ class GaussianVoxelMap {
   const std::vector<Eigen::Vector3f>& means() const { return means_; }
   const std::vector<Eigen::Matrix3f>& covs() const { return covs_; }
 
-  size_t memory_bytes() const;
 
  private:
   struct Slot {

@@ -22,8 +22,6 @@ struct PointCloud {
   bool has_times() const { return !times.empty(); }
   bool has_labels() const { return !labels.empty(); }
 
-  void reserve(size_t n) { points.reserve(n); }
-
   // Keeps the points whose flag is true, in order, for every channel present.
   void filter(const std::vector<char>& keep);
 };

@@ -21,7 +21,6 @@ void MatchingCostFactor::linearize(const Eigen::Isometry3d* const* poses, Factor
   out.H.bottomRightCorner<6, 6>() = lin.H_jj;
   out.b << lin.b_i, lin.b_j;
   out.error = lin.error;
-  last_inliers_ = lin.num_inliers;
 }
 
 double MatchingCostFactor::trial_error(const Eigen::Isometry3d* const* poses) const {
@@ -56,26 +55,6 @@ void RelativePoseFactor::linearize(const Eigen::Isometry3d* const* poses, Factor
 double RelativePoseFactor::trial_error(const Eigen::Isometry3d* const* poses) const {
   const Vector6d e = residual(*poses[0], *poses[1]);
   return weight_ * e.dot(information_ * e);
-}
-
-PriorFactor::PriorFactor(int key, const Eigen::Isometry3d& prior, const Matrix6d& information)
-    : prior_(prior), information_(information) {
-  keys_ = {key, -1};
-}
-
-void PriorFactor::linearize(const Eigen::Isometry3d* const* poses, FactorLinearization& out) {
-  const Vector6d e = se3_log(prior_.inverse() * *poses[0]);
-  const Matrix6d J = se3_right_jacobian_inverse(e);
-  out.H.setZero();
-  out.b.setZero();
-  out.H.topLeftCorner<6, 6>() = J.transpose() * information_ * J;
-  out.b.head<6>() = J.transpose() * information_ * e;
-  out.error = e.dot(information_ * e);
-}
-
-double PriorFactor::trial_error(const Eigen::Isometry3d* const* poses) const {
-  const Vector6d e = se3_log(prior_.inverse() * *poses[0]);
-  return e.dot(information_ * e);
 }
 
 }  // namespace gcmap

@@ -50,19 +50,11 @@ class MatchingCostFactor : public Factor {
 
   const PointCloud& source() const { return *source_; }
   const GaussianVoxelMap& target() const { return *target_; }
-  size_t last_num_inliers() const { return last_inliers_; }
-  const Eigen::Isometry3d& linearization_point() const { return T_lin_; }
-  // Lets a batched backend (the GPU) record what it computed for this factor.
-  void set_linearization_point(const Eigen::Isometry3d& T, size_t inliers) {
-    T_lin_ = T;
-    last_inliers_ = inliers;
-  }
 
  private:
   std::shared_ptr<const PointCloud> source_;
   std::shared_ptr<const GaussianVoxelMap> target_;
   Eigen::Isometry3d T_lin_ = Eigen::Isometry3d::Identity();  // T_target_source at the last linearization
-  size_t last_inliers_ = 0;
 };
 
 // SE(3) constraint T_i^-1 T_j ~ measured, error = log(measured^-1 T_i^-1 T_j) whitened by a 6x6
@@ -85,19 +77,6 @@ class RelativePoseFactor : public Factor {
   Matrix6d information_;
   RobustKernel kernel_;
   double weight_ = 1.0;
-};
-
-// Soft prior on one pose: error = log(prior^-1 T) whitened by the information matrix.
-class PriorFactor : public Factor {
- public:
-  PriorFactor(int key, const Eigen::Isometry3d& prior, const Matrix6d& information);
-  int num_keys() const override { return 1; }
-  void linearize(const Eigen::Isometry3d* const* poses, FactorLinearization& out) override;
-  double trial_error(const Eigen::Isometry3d* const* poses) const override;
-
- private:
-  Eigen::Isometry3d prior_;
-  Matrix6d information_;
 };
 
 }  // namespace gcmap
