@@ -1,6 +1,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "gcmap/core/error.hpp"
 #include "gcmap/core/preprocess.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/trajectory_io.hpp"
@@ -178,6 +179,7 @@ TEST(Registration, RecoversRealKitti07Pair) {
   voxels.insert(target);
   voxels.finalize();
   const Eigen::Isometry3d T_true = graph.poses[0].inverse() * graph.poses[1];
+  const GicpTarget gicp_target(std::make_shared<const PointCloud>(target));
   // Start 0.5 m and 5 degrees away, in several directions.
   for (int axis = 0; axis < 3; ++axis) {
     Vector6d d = Vector6d::Zero();
@@ -188,7 +190,71 @@ TEST(Registration, RecoversRealKitti07Pair) {
     EXPECT_TRUE(r.converged);
     EXPECT_LT(test::translation_error(r.T_target_source, T_true), 0.03) << "axis " << axis;
     EXPECT_LT(test::rotation_error_deg(r.T_target_source, T_true), 0.1) << "axis " << axis;
+    const RegistrationResult g = align_gicp(source, gicp_target, init);
+    EXPECT_TRUE(g.converged);
+    EXPECT_LT(test::translation_error(g.T_target_source, T_true), 0.03) << "GICP, axis " << axis;
+    EXPECT_LT(test::rotation_error_deg(g.T_target_source, T_true), 0.1) << "GICP, axis " << axis;
   }
+}
+
+TEST(Gicp, BlocksMatchNumericDifferentiation) {
+  std::mt19937_64 rng(31);
+  const Eigen::Isometry3d T_true = test::random_pose(rng, 0.05, 0.3);
+  const Scene s = make_scene(T_true);
+  const GicpTarget target(std::make_shared<const PointCloud>(s.target));
+  const Eigen::Isometry3d Tj = test::random_pose(rng, 0.5, 3.0);
+  const Eigen::Isometry3d Ti = Tj * T_true * se3_exp((Vector6d() << 0.01, -0.02, 0.01, 0.1, 0.05, -0.1).finished());
+  const std::vector<int> corr = find_correspondences(s.source, target, Tj.inverse() * Ti, 1.0);
+  const VgicpLinearization lin = linearize_gicp(s.source, target, Tj.inverse() * Ti, corr);
+  const auto residual = [&](size_t k, const Eigen::Isometry3d& A, const Eigen::Isometry3d& B) -> Eigen::Vector3d {
+    return s.target.points[corr[k]].cast<double>() - (B.inverse() * A) * s.source.points[k].cast<double>();
+  };
+  Eigen::Matrix<double, 12, 12> H = Eigen::Matrix<double, 12, 12>::Zero();
+  Eigen::Matrix<double, 12, 1> b = Eigen::Matrix<double, 12, 1>::Zero();
+  size_t inliers = 0;
+  const Eigen::Matrix3d R = (Tj.inverse() * Ti).linear();
+  for (size_t k = 0; k < s.source.size(); ++k) {
+    if (corr[k] < 0) continue;
+    const Eigen::Matrix3d omega =
+        (s.target.covs[corr[k]].cast<double>() + R * s.source.covs[k].cast<double>() * R.transpose()).inverse();
+    Eigen::Matrix<double, 3, 12> J;
+    const double h = 1e-6;
+    for (int a = 0; a < 6; ++a) {
+      Vector6d d = Vector6d::Zero();
+      d[a] = h;
+      J.col(a) = (residual(k, Ti * se3_exp(d), Tj) - residual(k, Ti * se3_exp(-d), Tj)) / (2 * h);
+      J.col(6 + a) = (residual(k, Ti, Tj * se3_exp(d)) - residual(k, Ti, Tj * se3_exp(-d))) / (2 * h);
+    }
+    H += J.transpose() * omega * J;
+    b += J.transpose() * omega * residual(k, Ti, Tj);
+    ++inliers;
+  }
+  ASSERT_GT(inliers, s.source.size() / 2);
+  EXPECT_EQ(lin.num_inliers, inliers);
+  EXPECT_LT((lin.H_ii - H.topLeftCorner<6, 6>()).norm() / H.norm(), 1e-4);
+  EXPECT_LT((lin.H_ij - H.topRightCorner<6, 6>()).norm() / H.norm(), 1e-4);
+  EXPECT_LT((lin.b_i - b.head<6>()).norm() / b.norm(), 1e-3);
+  EXPECT_LT((lin.b_j - b.tail<6>()).norm() / b.norm(), 1e-3);
+  // Beyond max_distance there is no correspondence.
+  const std::vector<int> none = find_correspondences(s.source, target, se3_exp(Vector6d::Constant(100.0)), 1.0);
+  EXPECT_EQ(std::count(none.begin(), none.end(), -1), static_cast<long>(none.size()));
+}
+
+TEST(Gicp, RecoversSyntheticTransformAndRejectsBadInput) {
+  std::mt19937_64 rng(9);
+  for (int trial = 0; trial < 2; ++trial) {
+    const Eigen::Isometry3d T_true = test::random_pose(rng, 0.05, 0.5);
+    const Scene s = make_scene(T_true);
+    const GicpTarget target(std::make_shared<const PointCloud>(s.target));
+    const RegistrationResult r = align_gicp(s.source, target, Eigen::Isometry3d::Identity());
+    EXPECT_TRUE(r.converged);
+    EXPECT_LT(test::translation_error(r.T_target_source, T_true), 0.02);
+    EXPECT_LT(test::rotation_error_deg(r.T_target_source, T_true), 0.1);
+  }
+  const Scene s = make_scene(Eigen::Isometry3d::Identity());
+  const GicpTarget target(std::make_shared<const PointCloud>(s.target));
+  EXPECT_THROW(align_gicp(s.source, target, Eigen::Isometry3d::Identity(), {.max_correspondence_distance = -1.0}), Error);
+  EXPECT_THROW(GicpTarget(std::make_shared<const PointCloud>(make_structured_scene(100, 1))), Error);  // no covariances
 }
 
 }  // namespace

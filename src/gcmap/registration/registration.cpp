@@ -2,16 +2,20 @@
 
 #include <Eigen/Cholesky>
 
+#include "gcmap/core/error.hpp"
 #include "gcmap/registration/vgicp.hpp"
 
 namespace gcmap {
+namespace {
 
-RegistrationResult align_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
-                               const Eigen::Isometry3d& init, const RegistrationConfig& config) {
+// Problem: linearize(T) associates at T and returns the blocks; evaluate(T) gives the error under
+// the association of the last linearization.
+template <class Problem>
+RegistrationResult align(Problem& problem, const Eigen::Isometry3d& init, const RegistrationConfig& config) {
   RegistrationResult result;
   result.T_target_source = init;
   double lambda = config.initial_lambda;
-  VgicpLinearization lin = linearize_vgicp(source, target, init);
+  VgicpLinearization lin = problem.linearize(init);
 
   for (int iter = 0; iter < config.max_iterations; ++iter) {
     result.iterations = iter + 1;
@@ -22,7 +26,7 @@ RegistrationResult align_vgicp(const PointCloud& source, const GaussianVoxelMap&
       const Matrix6d A = lin.H_ii + lambda * Matrix6d(lin.H_ii.diagonal().asDiagonal()) + 1e-9 * Matrix6d::Identity();
       delta = A.ldlt().solve(-lin.b_i);
       const Eigen::Isometry3d trial = result.T_target_source * se3_exp(delta);
-      const VgicpError e = evaluate_vgicp(source, target, trial, result.T_target_source);
+      const VgicpError e = problem.evaluate(trial);
       if (e.num_inliers > 0 && e.error <= lin.error) {
         result.T_target_source = normalized(trial);
         lambda = std::max(lambda * 0.1, 1e-10);
@@ -36,7 +40,7 @@ RegistrationResult align_vgicp(const PointCloud& source, const GaussianVoxelMap&
       result.converged = true;
       break;
     }
-    lin = linearize_vgicp(source, target, result.T_target_source);
+    lin = problem.linearize(result.T_target_source);
     if (delta.head<3>().norm() < config.rotation_eps && delta.tail<3>().norm() < config.translation_eps) {
       result.converged = true;
       break;
@@ -46,6 +50,45 @@ RegistrationResult align_vgicp(const PointCloud& source, const GaussianVoxelMap&
   result.error = lin.error;
   result.H = lin.H_ii;
   return result;
+}
+
+struct VgicpProblem {
+  const PointCloud& source;
+  const GaussianVoxelMap& target;
+  Eigen::Isometry3d T_association = Eigen::Isometry3d::Identity();
+  VgicpLinearization linearize(const Eigen::Isometry3d& T) {
+    T_association = T;
+    return linearize_vgicp(source, target, T);
+  }
+  VgicpError evaluate(const Eigen::Isometry3d& T) const { return evaluate_vgicp(source, target, T, T_association); }
+};
+
+struct GicpProblem {
+  const PointCloud& source;
+  const GicpTarget& target;
+  double max_distance;
+  std::vector<int> correspondences;
+  VgicpLinearization linearize(const Eigen::Isometry3d& T) {
+    correspondences = find_correspondences(source, target, T, max_distance);
+    return linearize_gicp(source, target, T, correspondences);
+  }
+  VgicpError evaluate(const Eigen::Isometry3d& T) const { return evaluate_gicp(source, target, T, correspondences); }
+};
+
+}  // namespace
+
+RegistrationResult align_vgicp(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& init,
+                               const RegistrationConfig& config) {
+  VgicpProblem problem{source, target};
+  return align(problem, init, config);
+}
+
+RegistrationResult align_gicp(const PointCloud& source, const GicpTarget& target, const Eigen::Isometry3d& init,
+                              const RegistrationConfig& config) {
+  if (source.covs.size() != source.size()) throw Error("align_gicp: the source cloud has no covariances");
+  if (!(config.max_correspondence_distance > 0.0)) throw Error("align_gicp: max_correspondence_distance must be positive");
+  GicpProblem problem{source, target, config.max_correspondence_distance, {}};
+  return align(problem, init, config);
 }
 
 }  // namespace gcmap

@@ -2,6 +2,7 @@
 #include "gcmap/core/gaussian_voxel_map.hpp"
 #include "gcmap/core/point_cloud.hpp"
 #include "gcmap/core/se3.hpp"
+#include "gcmap/registration/gicp.hpp"
 
 namespace gcmap {
 
@@ -12,6 +13,7 @@ struct RegistrationConfig {
   double translation_eps = 1e-4;
   double initial_lambda = 1e-6;
   double max_lambda = 1e8;
+  double max_correspondence_distance = 1.0;  // GICP only (m)
 };
 
 struct RegistrationResult {
@@ -23,9 +25,12 @@ struct RegistrationResult {
   Matrix6d H = Matrix6d::Zero();  // Gauss-Newton Hessian at the solution (information of T_target_source)
 };
 
-// Levenberg-Marquardt on T_target_source with right perturbations; a step is accepted only when
-// the VGICP error, re-associated at the trial pose, decreases.
+// Levenberg-Marquardt on T_target_source with right perturbations. Each iteration re-associates
+// at the current pose; a trial step is accepted only when it lowers the error under that same
+// association (re-associating at the trial pose would let newly matched points mask progress).
 RegistrationResult align_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
                                const Eigen::Isometry3d& init_T_target_source, const RegistrationConfig& config = {});
+RegistrationResult align_gicp(const PointCloud& source, const GicpTarget& target,
+                              const Eigen::Isometry3d& init_T_target_source, const RegistrationConfig& config = {});
 
 }  // namespace gcmap
