@@ -23,6 +23,7 @@ struct Overrides {
   int window = -1;
   double map_resolution = -1.0;
   bool pcd = false;
+  bool no_explicit_loops = false;
   int threads = 0;
 
   void add(CLI::App* cmd) {
@@ -32,6 +33,7 @@ struct Overrides {
     cmd->add_option("--factor", factor, "vgicp (default) or se3 (relative-pose factors from scan matching)");
     cmd->add_option("--map-resolution", map_resolution, "Voxel size of map.ply in m (default 0.1)");
     cmd->add_flag("--pcd", pcd, "Also write map.pcd");
+    cmd->add_flag("--no-explicit-loops", no_explicit_loops, "No ScanContext loop constraints (loop.enabled: false)");
     cmd->add_option("--threads", threads, "Worker threads (0 = all cores)")->capture_default_str();
   }
   MappingConfig resolve() const {
@@ -41,6 +43,7 @@ struct Overrides {
     if (window >= 0) c.global.window = window;
     if (map_resolution >= 0) c.output.map_resolution = map_resolution;
     if (pcd) c.output.pcd = true;
+    if (no_explicit_loops) c.loop.enabled = false;
     try {
       c.validate();
     } catch (const Error& e) {

@@ -11,7 +11,7 @@
 #include <fstream>
 
 #include "gcmap/core/error.hpp"
-#include "gcmap/core/preprocess.hpp"
+#include "gcmap/mapping/preprocess_scan.hpp"
 #include "gcmap/core/timer.hpp"
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
@@ -117,11 +117,7 @@ MapRunResult run_mapping(const MapRunOptions& o) {
       PointCloud raw = read_point_cloud(files[f]);
       if (with_labels) remove_dynamic(raw, (labels_dir / (fs::path(files[f]).stem().string() + ".label")).string());
       if (vertical) kitti_vertical_correction(raw);
-      PointCloud c = voxel_downsample(range_filter(raw, cfg.preprocess.min_range, cfg.preprocess.max_range), cfg.preprocess.downsample);
-      CovarianceConfig cc;
-      cc.num_neighbors = cfg.preprocess.num_neighbors;
-      estimate_covariances(c, cc);
-      cloud = std::make_shared<PointCloud>(std::move(c));
+      cloud = std::make_shared<PointCloud>(preprocess_scan(raw, cfg.preprocess));
     } catch (const Error& e) {
       spdlog::warn("skipping scan: {}", e.what());
       ++skipped;
@@ -193,9 +189,23 @@ MapRunResult run_mapping(const MapRunOptions& o) {
     j["target"] = fi.target;
     j["overlap"] = fi.overlap;
     j["final_error"] = fi.error;
+    if (fi.type != "matching_cost") j["final_weight"] = fi.weight;
+    j["explicit_loop"] = fi.type == "loop";
     factors.push_back(j);
   }
   graph["factors"] = factors;
+  Json loops = Json::array();  // every verified candidate, accepted or not
+  for (const LoopRecord& l : mapper.loops()) {
+    Json j = Json::object();
+    j["source"] = l.source;
+    j["target"] = l.target;
+    j["descriptor_distance"] = l.descriptor_distance;
+    j["inlier_fraction"] = l.inlier_fraction;
+    j["inlier_rmse"] = l.inlier_rmse;
+    j["accepted"] = l.accepted;
+    loops.push_back(j);
+  }
+  graph["loop_candidates"] = loops;
   write_file_atomic((fs::path(o.output) / "graph.json").string(), [&](std::ostream& s) { s << graph.dump() << "\n"; });
 
   const MapperStats& ms = mapper.stats();
@@ -211,6 +221,8 @@ MapRunResult run_mapping(const MapRunOptions& o) {
   timing["local_optimization"] = timing_json(ms.local_optimization);
   timing["global_factor_creation"] = timing_json(ms.global_factors);
   timing["global_optimization"] = timing_json(ms.global_optimization);
+  timing["loop_detection"] = timing_json(ms.loop_detection);
+  timing["loop_verification"] = timing_json(ms.loop_verification);
   stats["timing"] = timing;
   Json per = Json::array();
   for (const auto& p : ms.per_submap) {

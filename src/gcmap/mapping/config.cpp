@@ -41,6 +41,22 @@ void visit(Config& c, Visitor&& v) {
   v("global", "factor", c.global.factor);
   v("global", "max_iterations", c.global.max_iterations);
   v("global", "final_iterations", c.global.final_iterations);
+  v("loop", "enabled", c.loop.enabled);
+  v("loop", "rings", c.loop.scan_context.rings);
+  v("loop", "sectors", c.loop.scan_context.sectors);
+  v("loop", "max_radius", c.loop.scan_context.max_radius);
+  v("loop", "lidar_height", c.loop.scan_context.lidar_height);
+  v("loop", "exclude_recent", c.loop.exclude_recent);
+  v("loop", "num_candidates", c.loop.num_candidates);
+  v("loop", "max_descriptor_distance", c.loop.max_descriptor_distance);
+  v("loop", "verification_downsample", c.loop.verification_downsample);
+  v("loop", "inlier_distance", c.loop.inlier_distance);
+  v("loop", "min_inlier_fraction", c.loop.min_inlier_fraction);
+  v("loop", "max_inlier_rmse", c.loop.max_inlier_rmse);
+  v("loop", "rotation_sigma_deg", c.loop.rotation_sigma_deg);
+  v("loop", "translation_sigma", c.loop.translation_sigma);
+  v("loop", "tukey_width", c.loop.tukey_width);
+  v("loop", "tukey_offset", c.loop.tukey_offset);
   v("output", "map_resolution", c.output.map_resolution);
   v("output", "pcd", c.output.pcd);
 }
@@ -127,6 +143,15 @@ void MappingConfig::validate() const {
   need(global.window >= 1, "global.window must be >= 1");
   need(global.factor == "vgicp" || global.factor == "se3", "global.factor must be vgicp or se3");
   need(global.max_iterations >= 1 && global.final_iterations >= 1, "global iteration limits must be >= 1");
+  need(loop.scan_context.rings >= 1 && loop.scan_context.sectors >= 2 && loop.scan_context.max_radius > 0,
+       "loop.rings, loop.sectors and loop.max_radius must be positive");
+  need(loop.exclude_recent >= 1 && loop.num_candidates >= 1, "loop.exclude_recent and loop.num_candidates must be >= 1");
+  need(loop.max_descriptor_distance > 0 && loop.max_descriptor_distance <= 1, "loop.max_descriptor_distance must be in (0, 1]");
+  need(loop.verification_downsample > 0 && loop.inlier_distance > 0 && loop.max_inlier_rmse > 0,
+       "loop.verification_downsample, loop.inlier_distance and loop.max_inlier_rmse must be positive");
+  need(loop.min_inlier_fraction > 0 && loop.min_inlier_fraction <= 1, "loop.min_inlier_fraction must be in (0, 1]");
+  need(loop.rotation_sigma_deg > 0 && loop.translation_sigma > 0, "loop sigmas must be positive");
+  need(loop.tukey_width > 0 && loop.tukey_offset >= 0, "loop.tukey_width must be positive, loop.tukey_offset >= 0");
   need(output.map_resolution > 0, "output.map_resolution must be positive");
 }
 

@@ -7,6 +7,7 @@
 
 #include "gcmap/core/preprocess.hpp"
 #include "gcmap/core/timer.hpp"
+#include "gcmap/mapping/loop_closure.hpp"
 #include "gcmap/registration/registration.hpp"
 #include "gcmap/registration/vgicp.hpp"
 
@@ -60,11 +61,16 @@ void Mapper::add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud
       anchor_to_last();
       return;
     }
+    // After a gap (dropped scans) the frame may not overlap the submap at all: it starts a new one
+    // rather than joining a local graph it has no factor into.
+    if (ov < config_.local.th_min) close_submap();
   }
   auto voxels = std::make_shared<GaussianVoxelMap>(config_.local.voxel_resolution);
   voxels->insert(*cloud);
   voxels->finalize();
-  open_.push_back({frame, T_odom, cloud, voxels});
+  ScanContext descriptor;
+  if (config_.loop.enabled) descriptor = make_scan_context(*cloud, config_.loop.scan_context);
+  open_.push_back({frame, T_odom, cloud, voxels, std::move(descriptor)});
   frames_.back().anchor = frame;
   if (open_.size() >= 2) {
     const Keyframe& first = open_.front();
@@ -115,6 +121,13 @@ void Mapper::close_submap() {
   s.cloud = std::make_shared<const PointCloud>(std::move(merged));
   s.voxels = voxels;
   for (int k = 0; k < n; ++k) keyframe_location_[open_[k].frame] = {s.id, k};
+  if (config_.loop.enabled) {
+    for (int k = 0; k < n; ++k) {
+      places_.add(std::move(open_[k].descriptor));
+      place_keyframe_.emplace_back(s.id, k);
+    }
+  }
+  submap_places_end_.push_back(places_.size());
   open_.clear();
   insert_submap(std::move(s));
 }
@@ -136,39 +149,94 @@ void Mapper::insert_submap(Submap s) {
 
   Stopwatch w;
   const int first = config_.global.mode == "sliding-window" ? std::max(0, id - config_.global.window) : 0;
-  std::vector<std::pair<int, double>> candidates;
-  for (int j = first; j < id; ++j) candidates.emplace_back(j, 0.0);
-  tbb::parallel_for(size_t{0}, candidates.size(), [&](size_t k) {
-    const int j = candidates[k].first;
-    candidates[k].second = overlap(*cur.cloud, *submaps_[j].voxels, values_.at(j).inverse() * values_.at(id));
-  });
-  bool connected_to_past = false;
-  for (const auto& [j, ov] : candidates) {
-    if (ov < config_.global.th_min) continue;
-    if (config_.global.factor == "se3") {
-      // Ablation "Proposed (SE3)": a relative-pose constraint from scan matching, Hessian information.
-      const RegistrationResult r = align_vgicp(*cur.cloud, *submaps_[j].voxels, values_.at(j).inverse() * values_.at(id));
-      graph_.add(std::make_shared<RelativePoseFactor>(j, id, r.T_target_source, r.H, RobustKernel::huber(10.0)));
-      factor_info_.push_back({"se3", id, j, ov, 0.0});
-    } else {
-      graph_.add(std::make_shared<MatchingCostFactor>(id, j, cur.cloud, submaps_[j].voxels));
-      factor_info_.push_back({"matching_cost", id, j, ov, 0.0});
-    }
-    connected_to_past = true;
-  }
-  if (!connected_to_past) {
+  std::vector<char> connected(id, 0);
+  if (connect_overlapping(id, first, connected) == 0) {
     // Only where the submap would otherwise be disconnected.
     const Submap& prev = submaps_[id - 1];
     Matrix6d info = Matrix6d::Identity();
     info.diagonal() << 1e4, 1e4, 1e4, 1e3, 1e3, 1e3;
     graph_.add(std::make_shared<RelativePoseFactor>(id - 1, id, prev.T_odom.inverse() * cur.T_odom, info));
     factor_info_.push_back({"odometry", id, id - 1, 0.0, 0.0});
+    connected[id - 1] = 1;
   }
   stats_.global_factors.add(w.lap_ms());
+  const bool loop = config_.loop.enabled && config_.global.mode == "full" && close_explicit_loop(id);
+  w.lap_ms();  // loop time is counted in its own statistics
   lm_.optimize(graph_, values_, {0});
+  if (loop) {
+    // The implicit loop closure: the corrected estimate now overlaps submaps it missed before.
+    Stopwatch f;
+    const int added = connect_overlapping(id, first, connected);
+    stats_.global_factors.add(f.ms());
+    w.lap_ms();
+    if (added) lm_.optimize(graph_, values_, {0});
+  }
   const double opt_ms = w.lap_ms();
   stats_.global_optimization.add(opt_ms);
   stats_.per_submap.push_back({id + 1, static_cast<int>(graph_.factors.size()), opt_ms});
+}
+
+int Mapper::connect_overlapping(int id, int first, std::vector<char>& connected) {
+  const Submap& cur = submaps_[id];
+  std::vector<std::pair<int, double>> candidates;
+  for (int j = first; j < id; ++j) {
+    if (!connected[j]) candidates.emplace_back(j, 0.0);
+  }
+  tbb::parallel_for(size_t{0}, candidates.size(), [&](size_t k) {
+    const int j = candidates[k].first;
+    candidates[k].second = overlap(*cur.cloud, *submaps_[j].voxels, values_.at(j).inverse() * values_.at(id));
+  });
+  int added = 0;
+  for (const auto& [j, ov] : candidates) {
+    if (ov < config_.global.th_min) continue;
+    if (config_.global.factor == "se3") {
+      // Ablation "Proposed (SE3)": a relative-pose constraint from kNN GICP scan matching with the
+      // Hessian as information and a Huber kernel.
+      const GicpTarget target(submaps_[j].cloud);
+      const RegistrationResult r = align_gicp(*cur.cloud, target, values_.at(j).inverse() * values_.at(id));
+      graph_.add(std::make_shared<RelativePoseFactor>(j, id, r.T_target_source, r.H, RobustKernel::huber(10.0)));
+      factor_info_.push_back({"se3", id, j, ov, 0.0});
+    } else {
+      graph_.add(std::make_shared<MatchingCostFactor>(id, j, cur.cloud, submaps_[j].voxels));
+      factor_info_.push_back({"matching_cost", id, j, ov, 0.0});
+    }
+    connected[j] = 1;
+    ++added;
+  }
+  return added;
+}
+
+bool Mapper::close_explicit_loop(int id) {
+  const LoopConfig& lc = config_.loop;
+  const int last_searchable = id - lc.exclude_recent;  // submaps [0, last_searchable) are searched
+  if (last_searchable <= 0) return false;
+  Stopwatch w;
+  const size_t end = submap_places_end_[last_searchable - 1];
+  const size_t begin = id == 0 ? 0 : submap_places_end_[id - 1];
+  ScanContextDatabase::Result best;
+  size_t best_query = 0;
+  for (size_t q = begin; q < submap_places_end_[id]; ++q) {
+    const ScanContextDatabase::Result r = places_.query(places_.place(q), end, lc.num_candidates);
+    if (r.place >= 0 && r.match.distance < best.match.distance) {
+      best = r;
+      best_query = q;
+    }
+  }
+  stats_.loop_detection.add(w.lap_ms());
+  if (best.place < 0 || best.match.distance > lc.max_descriptor_distance) return false;
+
+  // Keyframe a (this submap) matched keyframe b (submap j) with R_b_a = Rz(yaw), positions unknown.
+  const auto [j, kb] = place_keyframe_[best.place];
+  const int ka = place_keyframe_[best_query].second;
+  const Eigen::Isometry3d T_b_a(Eigen::AngleAxisd(best.match.yaw, Eigen::Vector3d::UnitZ()));
+  const Eigen::Isometry3d init = submaps_[j].T_submap_keyframe[kb] * T_b_a * submaps_[id].T_submap_keyframe[ka].inverse();
+  const LoopVerification v = verify_loop(*submaps_[id].cloud, *submaps_[j].cloud, init, lc);
+  stats_.loop_verification.add(w.lap_ms());
+  loops_.push_back({id, j, best.match.distance, v.inlier_fraction, v.inlier_rmse, v.accepted, v.T_target_source});
+  if (!v.accepted) return false;
+  graph_.add(make_loop_factor(j, id, v.T_target_source, lc));
+  factor_info_.push_back({"loop", id, j, 0.0, 0.0});
+  return true;
 }
 
 void Mapper::finish() {
@@ -215,6 +283,7 @@ std::vector<FactorInfo> Mapper::factors() const {
       FactorLinearization lin;
       copy.linearize(poses, lin);
       out[f].error = lin.error;
+      out[f].weight = copy.weight();
     }
   });
   return out;

@@ -7,6 +7,7 @@
 
 #include "gcmap/graph/levenberg_marquardt.hpp"
 #include "gcmap/mapping/config.hpp"
+#include "gcmap/mapping/scan_context.hpp"
 
 namespace gcmap {
 
@@ -20,10 +21,19 @@ struct Submap {
 };
 
 struct FactorInfo {
-  std::string type;  // matching_cost, odometry, se3
+  std::string type;  // matching_cost, odometry, se3, loop (explicit)
   int source = 0, target = 0;
   double overlap = 0.0;
   double error = 0.0;
+  double weight = 1.0;  // robust-kernel weight at the final estimate (relative-pose factors)
+};
+
+// An explicit loop that passed or failed verification.
+struct LoopRecord {
+  int source = 0, target = 0;  // submaps
+  double descriptor_distance = 0.0, inlier_fraction = 0.0, inlier_rmse = 0.0;
+  bool accepted = false;
+  Eigen::Isometry3d T_target_source = Eigen::Isometry3d::Identity();  // verified relative pose
 };
 
 struct TimingStats {
@@ -36,6 +46,8 @@ struct TimingStats {
 
 struct MapperStats {
   TimingStats local_factors, local_optimization, global_factors, global_optimization;
+  TimingStats loop_detection;     // descriptors and retrieval, per submap
+  TimingStats loop_verification;  // GICP, per candidate
   struct PerSubmap {
     int num_submaps, num_factors;
     double global_optimization_ms;
@@ -60,6 +72,7 @@ class Mapper {
   Eigen::Isometry3d submap_pose(int id) const { return values_.at(id); }
   std::vector<FactorInfo> factors() const;
   const MapperStats& stats() const { return stats_; }
+  const std::vector<LoopRecord>& loops() const { return loops_; }
   size_t num_global_factors() const { return graph_.factors.size(); }
   // All submaps in the world frame, voxel-downsampled.
   PointCloud assemble_map(double resolution) const;
@@ -70,6 +83,7 @@ class Mapper {
     Eigen::Isometry3d T_odom;
     std::shared_ptr<const PointCloud> cloud;
     std::shared_ptr<GaussianVoxelMap> voxels;  // local resolution, keyframe frame
+    ScanContext descriptor;                    // when explicit loops are on
   };
   struct FrameRecord {
     int anchor = -1;  // keyframe frame index this frame is placed from
@@ -78,6 +92,12 @@ class Mapper {
 
   void close_submap();
   void insert_submap(Submap submap);
+  // Matching-cost (or se3) factors from submap id to every past submap in [first, id) not in
+  // `connected` whose overlap reaches th_min_G; returns how many were added.
+  int connect_overlapping(int id, int first, std::vector<char>& connected);
+  // Searches the places of older submaps for the keyframes of submap id, verifies the best
+  // candidate and adds a loop factor; true when one was added.
+  bool close_explicit_loop(int id);
 
   MappingConfig config_;
   std::vector<Keyframe> open_;  // keyframes of the submap being built
@@ -89,6 +109,10 @@ class Mapper {
   Values values_;
   LevenbergMarquardt lm_;
   MapperStats stats_;
+  ScanContextDatabase places_;             // keyframe descriptors, in submap order
+  std::vector<std::pair<int, int>> place_keyframe_;  // per place: (submap, index in submap)
+  std::vector<size_t> submap_places_end_;  // per submap: places_ size once it was added
+  std::vector<LoopRecord> loops_;
 };
 
 }  // namespace gcmap

@@ -1,0 +1,15 @@
+#include "gcmap/mapping/preprocess_scan.hpp"
+
+#include "gcmap/core/preprocess.hpp"
+
+namespace gcmap {
+
+PointCloud preprocess_scan(const PointCloud& raw, const PreprocessConfig& config) {
+  PointCloud c = voxel_downsample(range_filter(raw, config.min_range, config.max_range), config.downsample);
+  CovarianceConfig cc;
+  cc.num_neighbors = config.num_neighbors;
+  estimate_covariances(c, cc);
+  return c;
+}
+
+}  // namespace gcmap

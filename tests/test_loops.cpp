@@ -1,0 +1,150 @@
+// Explicit loops: ScanContext descriptors and retrieval, GICP verification, and the shifted-Tukey
+// loop constraint, on scans of the simulator's small scenario (one block loop, start revisited).
+#include "gcmap/core/gaussian_voxel_map.hpp"
+#include "gcmap/graph/levenberg_marquardt.hpp"
+#include "gcmap/eval/trajectory_metrics.hpp"
+#include "gcmap/mapping/loop_closure.hpp"
+#include "gcmap/mapping/mapper.hpp"
+#include "gcmap/mapping/preprocess_scan.hpp"
+#include "gcmap/mapping/scan_context.hpp"
+#include "gcmap/sim/simulator.hpp"
+#include "test_util.hpp"
+
+namespace gcmap {
+namespace {
+
+Eigen::Isometry3d yaw_rotation(double rad) { return Eigen::Isometry3d(Eigen::AngleAxisd(rad, Eigen::Vector3d::UnitZ())); }
+
+class LoopScenario : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    sim::SimulationConfig cfg;
+    cfg.scenario = "small";
+    simulator = new sim::Simulator(cfg);
+  }
+  static void TearDownTestSuite() { delete simulator; }
+  static PointCloud scan(int f) { return preprocess_scan(simulator->scan(f), PreprocessConfig{}); }
+  // Ground-truth T_a_b between frames.
+  static Eigen::Isometry3d relative(int a, int b) { return simulator->poses()[a].inverse() * simulator->poses()[b]; }
+  static sim::Simulator* simulator;
+};
+sim::Simulator* LoopScenario::simulator = nullptr;
+
+TEST_F(LoopScenario, ScanContextRecoversYawAndIsDeterministic) {
+  const PointCloud c = scan(10);
+  const ScanContext original = make_scan_context(c);
+  for (const double yaw_deg : {37.0, -120.0, 180.0}) {
+    // The query sees the scene rotated: p_query = Rz(yaw) p_candidate, so R_candidate_query = Rz(-yaw).
+    const ScanContext rotated = make_scan_context(transformed(c, yaw_rotation(yaw_deg * M_PI / 180.0)));
+    const ScanContextMatch m = match_scan_contexts(rotated, original);
+    double error = std::remainder(m.yaw + yaw_deg * M_PI / 180.0, 2.0 * M_PI) * 180.0 / M_PI;
+    EXPECT_LT(std::abs(error), 3.01) << "yaw " << yaw_deg;  // half a 6-degree sector
+    EXPECT_LT(m.distance, 0.1) << "yaw " << yaw_deg;
+  }
+  // Same input, same descriptor, same match; a place 40 m away along the loop matches worse.
+  const ScanContext again = make_scan_context(c);
+  EXPECT_EQ(again.cells, original.cells);
+  EXPECT_EQ(match_scan_contexts(again, original).distance, 0.0);
+  EXPECT_GT(match_scan_contexts(make_scan_context(scan(45)), original).distance, 0.15);
+}
+
+TEST_F(LoopScenario, RetrievalFindsTheRevisitAmongOlderPlacesOnly) {
+  ScanContextDatabase db;
+  std::vector<int> frames;
+  for (int f = 0; f < 130; f += 5) {
+    db.add(make_scan_context(scan(f)));
+    frames.push_back(f);
+  }
+  // Frame 144 drives past the start again.
+  const ScanContext query = make_scan_context(scan(144));
+  const ScanContextDatabase::Result r = db.query(query, db.size(), 10);
+  ASSERT_GE(r.place, 0);
+  EXPECT_LT(relative(frames[r.place], 144).translation().norm(), 5.0) << "matched frame " << frames[r.place];
+  EXPECT_LT(r.match.distance, 0.3);  // places every 5 frames: the nearest is still metres away
+  EXPECT_EQ(db.query(query, db.size(), 10).place, r.place);
+  // Places at or beyond `end` are never returned.
+  EXPECT_LT(db.query(query, 3, 10).place, 3);
+  EXPECT_EQ(db.query(query, 0, 10).place, -1);
+}
+
+TEST_F(LoopScenario, VerificationAcceptsTheRevisitAndRejectsAnotherPlace) {
+  const PointCloud start = scan(3), revisit = scan(146), elsewhere = scan(75);
+  const ScanContextMatch m = match_scan_contexts(make_scan_context(revisit), make_scan_context(start));
+  const LoopConfig config;
+  const LoopVerification good = verify_loop(revisit, start, yaw_rotation(m.yaw), config);
+  EXPECT_TRUE(good.accepted) << good.inlier_fraction << " " << good.inlier_rmse;
+  EXPECT_LT(test::translation_error(good.T_target_source, relative(3, 146)), 0.05);
+  EXPECT_LT(test::rotation_error_deg(good.T_target_source, relative(3, 146)), 0.2);
+  // The far side of the block, started from the best yaw ScanContext can offer.
+  const ScanContextMatch wrong = match_scan_contexts(make_scan_context(elsewhere), make_scan_context(start));
+  const LoopVerification bad = verify_loop(elsewhere, start, yaw_rotation(wrong.yaw), config);
+  EXPECT_FALSE(bad.accepted) << bad.inlier_fraction << " " << bad.inlier_rmse;
+}
+
+TEST_F(LoopScenario, ShiftedTukeyLoopNeutralizesAPlantedFalseLoopAndLetsGoOfATrueOne) {
+  // Three scans joined by matching-cost factors; loop constraints between the first and the last.
+  const int frames[3] = {0, 6, 12};
+  std::vector<std::shared_ptr<const PointCloud>> clouds;
+  std::vector<std::shared_ptr<const GaussianVoxelMap>> maps;
+  for (const int f : frames) {
+    auto c = std::make_shared<const PointCloud>(scan(f));
+    auto v = std::make_shared<GaussianVoxelMap>(1.0);
+    v->insert(*c);
+    v->finalize();
+    clouds.push_back(c);
+    maps.push_back(v);
+  }
+  const auto optimize = [&](const std::shared_ptr<RelativePoseFactor>& loop) {
+    FactorGraph graph;
+    graph.add(std::make_shared<MatchingCostFactor>(1, 0, clouds[1], maps[0]));
+    graph.add(std::make_shared<MatchingCostFactor>(2, 1, clouds[2], maps[1]));
+    graph.add(std::make_shared<MatchingCostFactor>(2, 0, clouds[2], maps[0]));
+    if (loop) graph.add(loop);
+    Values values;
+    for (int k = 0; k < 3; ++k) values[k] = relative(frames[0], frames[k]);
+    LevenbergMarquardt(LMConfig{}).optimize(graph, values, {0});
+    return values;
+  };
+  const LoopConfig config;
+  const Values reference = optimize(nullptr);
+  // A false loop 30 m and 90 degrees off is grossly wrong: zero weight, the poses do not move.
+  const Eigen::Isometry3d wrong = relative(frames[0], frames[2]) * yaw_rotation(M_PI / 2) *
+                                  Eigen::Isometry3d(Eigen::Translation3d(30.0, 0.0, 0.0));
+  auto false_loop = make_loop_factor(0, 2, wrong, config);
+  const Values with_false = optimize(false_loop);
+  EXPECT_EQ(false_loop->weight(), 0.0);
+  for (int k = 0; k < 3; ++k) EXPECT_LT(test::translation_error(with_false.at(k), reference.at(k)), 1e-3) << k;
+  // A true loop measured 2 cm off the matching-cost optimum is satisfied: it lets go and the
+  // matching-cost factors decide.
+  auto true_loop = make_loop_factor(0, 2, reference.at(2) * Eigen::Isometry3d(Eigen::Translation3d(0.02, 0.0, 0.0)), config);
+  const Values with_true = optimize(true_loop);
+  EXPECT_LT(true_loop->weight(), 1e-6);
+  for (int k = 0; k < 3; ++k) EXPECT_LT(test::translation_error(with_true.at(k), reference.at(k)), 1e-3) << k;
+  // Far from satisfied but plausible (3 m, 10 m of drift), it pulls.
+  const RobustKernel kernel = RobustKernel::shifted_tukey(config.tukey_width, config.tukey_offset);
+  EXPECT_GT(kernel.weight(3.0 / config.translation_sigma), 0.2);
+  EXPECT_EQ(kernel.weight(10.0 / config.translation_sigma), 1.0);
+}
+
+TEST_F(LoopScenario, MapperBridgesAGapOfDroppedScans) {
+  // 50 scans (40 m around a corner) lost, 15 m range: the first frame after the gap overlaps
+  // nothing in the open submap, so it must start a new submap instead of joining a local graph it
+  // has no factor into.
+  MappingConfig cfg;
+  cfg.preprocess.max_range = 15.0;
+  Mapper mapper(cfg);
+  Poses truth;
+  for (int f = 0; f < 90; ++f) {
+    const bool lost = f >= 25 && f < 75;
+    const auto cloud = lost ? nullptr : std::make_shared<const PointCloud>(preprocess_scan(simulator->scan(f), cfg.preprocess));
+    mapper.add_frame(f, cloud, relative(0, f));
+    truth.push_back(relative(0, f));
+  }
+  ASSERT_NO_THROW(mapper.finish());
+  const Poses est = mapper.trajectory();
+  ASSERT_EQ(est.size(), truth.size());
+  EXPECT_LT(absolute_trajectory_error(truth, est).rmse, 0.05);
+}
+
+}  // namespace
+}  // namespace gcmap
