@@ -7,6 +7,8 @@
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "gcmap/mapping/config.hpp"
+#include "gcmap/mapping/preprocess_scan.hpp"
+#include "gcmap/registration/registration.hpp"
 #include "gcmap/sim/simulator.hpp"
 #include "test_util.hpp"
 
@@ -136,6 +138,45 @@ TEST(Mapping, ConfigRoundTripsThroughYaml) {
   EXPECT_EQ(d.local.th_min, 0.10);
   EXPECT_EQ(d.local.max_keyframes, 15);
   EXPECT_EQ(d.global.th_min, 0.025);
+}
+
+TEST(Mapping, Kitti00OdometryAgreesWithScanToScanGicp) {
+  GCMAP_REQUIRE_SHARED_DATA("kitti00_first16");
+  const std::string seq = test::shared_data() + "/kitti00_first16";
+  test::TempDir dir;
+  // Both sides see the scans as stored (no 0.22 degree correction), preprocessed the same way.
+  {
+    std::ofstream cfg(dir / "cfg.yaml");
+    cfg << "preprocess:\n  kitti_vertical_correction: false\n";
+  }
+  std::string err;
+  ASSERT_EQ(run("map " + seq + " -o " + (dir / "out") + " --quiet --config " + (dir / "cfg.yaml"), &err), 0) << err;
+  const Poses odom = read_trajectory(dir / "out/odometry.kitti").poses;
+  ASSERT_EQ(odom.size(), 16u);
+  EXPECT_EQ(read_trajectory(dir / "out/trajectory.kitti").size(), 16u);
+
+  // Independent front end: kNN GICP from each scan to the previous one, constant-velocity start.
+  std::vector<PointCloud> scans;
+  for (int k = 0; k < 16; ++k) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "/velodyne/%06d.bin", k);
+    scans.push_back(preprocess_scan(read_point_cloud(seq + name), PreprocessConfig{}));
+  }
+  Eigen::Isometry3d guess = Eigen::Isometry3d::Identity();
+  double worst = 0.0;
+  for (int k = 1; k < 16; ++k) {
+    const GicpTarget target(std::make_shared<const PointCloud>(scans[k - 1]));
+    const RegistrationResult r = align_gicp(scans[k], target, guess);
+    ASSERT_TRUE(r.converged) << "frame " << k;
+    guess = r.T_target_source;
+    const double diff = test::translation_error(odom[k - 1].inverse() * odom[k], r.T_target_source);
+    worst = std::max(worst, diff);
+    EXPECT_LT(diff, 0.02) << "frame " << k;
+    EXPECT_LT(test::rotation_error_deg(odom[k - 1].inverse() * odom[k], r.T_target_source), 0.1) << "frame " << k;
+  }
+  std::printf("largest per-frame difference odometry vs GICP: %.4f m\n", worst);
+  // The data README quotes 0.69 m for the first motion from two GICP implementations.
+  EXPECT_NEAR((odom[0].inverse() * odom[1]).translation().norm(), 0.69, 0.02);
 }
 
 }  // namespace
