@@ -34,12 +34,14 @@ void visit(Config& c, Visitor&& v) {
   v("local", "submap_downsample", c.local.submap_downsample);
   v("local", "max_submap_points", c.local.max_submap_points);
   v("local", "max_iterations", c.local.max_iterations);
+  v("local", "relative_error_tol", c.local.relative_error_tol);
   v("global", "th_min", c.global.th_min);
   v("global", "voxel_resolution", c.global.voxel_resolution);
   v("global", "mode", c.global.mode);
   v("global", "window", c.global.window);
   v("global", "factor", c.global.factor);
   v("global", "max_iterations", c.global.max_iterations);
+  v("global", "relative_error_tol", c.global.relative_error_tol);
   v("global", "final_iterations", c.global.final_iterations);
   v("loop", "enabled", c.loop.enabled);
   v("loop", "rings", c.loop.scan_context.rings);
@@ -143,6 +145,7 @@ void MappingConfig::validate() const {
   need(global.window >= 1, "global.window must be >= 1");
   need(global.factor == "vgicp" || global.factor == "se3", "global.factor must be vgicp or se3");
   need(global.max_iterations >= 1 && global.final_iterations >= 1, "global iteration limits must be >= 1");
+  need(local.relative_error_tol >= 0 && global.relative_error_tol >= 0, "relative_error_tol must be >= 0");
   need(loop.scan_context.rings >= 1 && loop.scan_context.sectors >= 2 && loop.scan_context.max_radius > 0,
        "loop.rings, loop.sectors and loop.max_radius must be positive");
   need(loop.exclude_recent >= 1 && loop.num_candidates >= 1, "loop.exclude_recent and loop.num_candidates must be >= 1");

@@ -32,6 +32,7 @@ struct LocalMappingConfig {
   double submap_downsample = 0.25;
   int max_submap_points = 60000;
   int max_iterations = 20;
+  double relative_error_tol = 1e-4;  // LM stops once a step gains less than this fraction
 };
 
 struct GlobalMappingConfig {
@@ -41,6 +42,7 @@ struct GlobalMappingConfig {
   int window = 5;                 // sliding-window: connect to this many predecessors
   std::string factor = "vgicp";   // vgicp | se3
   int max_iterations = 10;        // per insertion (warm-started)
+  double relative_error_tol = 1e-4;  // per insertion; the final optimization runs to 1e-6
   int final_iterations = 50;
 };
 

@@ -31,14 +31,15 @@ double TimingStats::max() const {
 }
 
 namespace {
-LMConfig lm_config(int iterations) {
+LMConfig lm_config(int iterations, double relative_error_tol = LMConfig{}.relative_error_tol) {
   LMConfig c;
   c.max_iterations = iterations;
+  c.relative_error_tol = relative_error_tol;
   return c;
 }
 }  // namespace
 
-Mapper::Mapper(const MappingConfig& config) : config_(config), lm_(lm_config(config.global.max_iterations)) {
+Mapper::Mapper(const MappingConfig& config) : config_(config), lm_(lm_config(config.global.max_iterations, config.global.relative_error_tol)) {
   config_.validate();
 }
 
@@ -94,7 +95,7 @@ void Mapper::close_submap() {
     for (int b = 1; b < n; ++b)
       for (int a = 0; a < b; ++a) g.add(std::make_shared<MatchingCostFactor>(b, a, open_[b].cloud, open_[a].voxels));
     stats_.local_factors.add(w.lap_ms());
-    LevenbergMarquardt lm(lm_config(config_.local.max_iterations));
+    LevenbergMarquardt lm(lm_config(config_.local.max_iterations, config_.local.relative_error_tol));
     lm.optimize(g, local, {0});
     stats_.local_optimization.add(w.lap_ms());
   }
@@ -213,13 +214,15 @@ bool Mapper::close_explicit_loop(int id) {
   Stopwatch w;
   const size_t end = submap_places_end_[last_searchable - 1];
   const size_t begin = id == 0 ? 0 : submap_places_end_[id - 1];
+  std::vector<const ScanContext*> queries;
+  for (size_t q = begin; q < submap_places_end_[id]; ++q) queries.push_back(&places_.place(q));
+  const std::vector<ScanContextDatabase::Result> results = places_.query(queries, end, lc.num_candidates);
   ScanContextDatabase::Result best;
   size_t best_query = 0;
-  for (size_t q = begin; q < submap_places_end_[id]; ++q) {
-    const ScanContextDatabase::Result r = places_.query(places_.place(q), end, lc.num_candidates);
-    if (r.place >= 0 && r.match.distance < best.match.distance) {
-      best = r;
-      best_query = q;
+  for (size_t q = 0; q < results.size(); ++q) {
+    if (results[q].place >= 0 && results[q].match.distance < best.match.distance) {
+      best = results[q];
+      best_query = begin + q;
     }
   }
   stats_.loop_detection.add(w.lap_ms());

@@ -1,9 +1,12 @@
 #include "gcmap/mapping/scan_context.hpp"
 
 #include <nanoflann.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "gcmap/core/error.hpp"
 
@@ -17,14 +20,28 @@ ScanContext make_scan_context(const PointCloud& cloud, const ScanContextConfig& 
   sc.sectors = config.sectors;
   sc.cells.assign(static_cast<size_t>(sc.rings) * sc.sectors, 0.f);
   const double ring_width = config.max_radius / sc.rings, sector_width = 2.0 * M_PI / sc.sectors;
-  for (const auto& p : cloud.points) {
-    const double r = std::hypot(p.x(), p.y());
-    if (!(r < config.max_radius)) continue;  // also drops NaN
-    const int ring = std::min(sc.rings - 1, static_cast<int>(r / ring_width));
-    const int sector = std::min(sc.sectors - 1, static_cast<int>((std::atan2(p.y(), p.x()) + M_PI) / sector_width));
-    float& cell = sc.cells[ring * sc.sectors + sector];
-    cell = std::max(cell, static_cast<float>(p.z() + config.lidar_height));
-  }
+  const float max_radius = static_cast<float>(config.max_radius), height = static_cast<float>(config.lidar_height);
+  const float inv_ring = static_cast<float>(1.0 / ring_width), inv_sector = static_cast<float>(1.0 / sector_width);
+  // Per-chunk grids merged by max: exact and independent of the thread count.
+  sc.cells = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, cloud.size(), 4096), sc.cells,
+      [&](const tbb::blocked_range<size_t>& range, std::vector<float> cells) {
+        for (size_t i = range.begin(); i != range.end(); ++i) {
+          const Eigen::Vector3f& p = cloud.points[i];
+          const float r = std::sqrt(p.x() * p.x() + p.y() * p.y());
+          if (!(r < max_radius)) continue;  // also drops NaN
+          const int ring = std::min(sc.rings - 1, static_cast<int>(r * inv_ring));
+          const int sector =
+              std::min(sc.sectors - 1, static_cast<int>((std::atan2(p.y(), p.x()) + static_cast<float>(M_PI)) * inv_sector));
+          float& cell = cells[ring * sc.sectors + sector];
+          cell = std::max(cell, p.z() + height);
+        }
+        return cells;
+      },
+      [](std::vector<float> a, const std::vector<float>& b) {
+        for (size_t k = 0; k < a.size(); ++k) a[k] = std::max(a[k], b[k]);
+        return a;
+      });
   sc.ring_key.assign(sc.rings, 0.f);
   for (int r = 0; r < sc.rings; ++r) {
     double sum = 0.0;
@@ -47,8 +64,29 @@ ScanContextMatch match_scan_contexts(const ScanContext& q, const ScanContext& c)
     qn[s] = std::sqrt(qn[s]);
     cn[s] = std::sqrt(cn[s]);
   }
-  ScanContextMatch best;
+  // Coarse alignment by the sector keys (column means), then the full distance only within
+  // +-kRefine columns of it: 7 full evaluations instead of S.
+  std::vector<double> qk(S, 0.0), ck(S, 0.0);
+  for (int s = 0; s < S; ++s) {
+    for (int r = 0; r < R; ++r) {
+      qk[s] += q.at(r, s);
+      ck[s] += c.at(r, s);
+    }
+  }
+  int coarse = 0;
+  double coarse_cost = std::numeric_limits<double>::max();
   for (int shift = 0; shift < S; ++shift) {
+    double cost = 0.0;
+    for (int s = 0; s < S; ++s) cost += std::abs(qk[s] - ck[(s + shift) % S]);
+    if (cost < coarse_cost) {
+      coarse_cost = cost;
+      coarse = shift;
+    }
+  }
+  constexpr int kRefine = 3;
+  ScanContextMatch best;
+  for (int k = -kRefine; k <= kRefine; ++k) {
+    const int shift = ((coarse + k) % S + S) % S;
     double sum = 0.0;
     int valid = 0;
     for (int s = 0; s < S; ++s) {
@@ -60,7 +98,7 @@ ScanContextMatch match_scan_contexts(const ScanContext& q, const ScanContext& c)
       ++valid;
     }
     const double d = valid ? 1.0 - sum / valid : 1.0;
-    if (d < best.distance) {
+    if (d < best.distance || (d == best.distance && shift < best.shift)) {
       best.distance = d;
       best.shift = shift;
     }
@@ -85,29 +123,31 @@ struct RingKeys {
 
 }  // namespace
 
-ScanContextDatabase::Result ScanContextDatabase::query(const ScanContext& descriptor, size_t end, int num_candidates) const {
-  Result best;
+std::vector<ScanContextDatabase::Result> ScanContextDatabase::query(const std::vector<const ScanContext*>& descriptors,
+                                                                   size_t end, int num_candidates) const {
+  std::vector<Result> out(descriptors.size());
   end = std::min(end, places_.size());
-  if (end == 0 || num_candidates < 1) return best;
+  if (end == 0 || num_candidates < 1 || descriptors.empty()) return out;
   const RingKeys keys{places_, end};
   using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, RingKeys>, RingKeys, -1, uint32_t>;
-  // Rebuilt per query: a few thousand 20-float keys build in well under a millisecond, and the
-  // searchable range moves with every new place.
-  Tree tree(descriptor.rings, keys, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  // Built per call, once for all queries: the searchable range grows with every submap.
+  Tree tree(places_.front().rings, keys, nanoflann::KDTreeSingleIndexAdaptorParams(10));
   tree.buildIndex();
   const size_t k = std::min(end, static_cast<size_t>(num_candidates));
   std::vector<uint32_t> idx(k);
   std::vector<float> d2(k);
-  nanoflann::KNNResultSet<float, uint32_t> result(k);
-  result.init(idx.data(), d2.data());
-  tree.findNeighbors(result, descriptor.ring_key.data(), nanoflann::SearchParams());
-  std::vector<uint32_t> found(idx.begin(), idx.begin() + result.size());
-  std::sort(found.begin(), found.end());  // order-independent tie breaking
-  for (const uint32_t i : found) {
-    const ScanContextMatch m = match_scan_contexts(descriptor, places_[i]);
-    if (m.distance < best.match.distance) best = {static_cast<int>(i), m};
+  for (size_t q = 0; q < descriptors.size(); ++q) {
+    nanoflann::KNNResultSet<float, uint32_t> result(k);
+    result.init(idx.data(), d2.data());
+    tree.findNeighbors(result, descriptors[q]->ring_key.data(), nanoflann::SearchParams());
+    std::vector<uint32_t> found(idx.begin(), idx.begin() + result.size());
+    std::sort(found.begin(), found.end());  // order-independent tie breaking
+    for (const uint32_t i : found) {
+      const ScanContextMatch m = match_scan_contexts(*descriptors[q], places_[i]);
+      if (m.distance < out[q].match.distance) out[q] = {static_cast<int>(i), m};
+    }
   }
-  return best;
+  return out;
 }
 
 }  // namespace gcmap

@@ -1,7 +1,7 @@
 #pragma once
 // ScanContext place recognition (Kim & Kim, IROS 2018): a polar grid of maximum heights around the
-// sensor, retrieved by a rotation-invariant ring key and matched over all column shifts, which also
-// gives the yaw between the two scans.
+// sensor, retrieved by a rotation-invariant ring key and matched by column shift (coarse by the
+// sector key, refined by the column cosine distance), which also gives the yaw between the scans.
 #include <Eigen/Geometry>
 #include <vector>
 
@@ -46,7 +46,11 @@ class ScanContextDatabase {
     int place = -1;
     ScanContextMatch match;
   };
-  Result query(const ScanContext& descriptor, size_t end, int num_candidates) const;
+  // One result per query descriptor (place -1: nothing searchable).
+  std::vector<Result> query(const std::vector<const ScanContext*>& descriptors, size_t end, int num_candidates) const;
+  Result query(const ScanContext& descriptor, size_t end, int num_candidates) const {
+    return query(std::vector<const ScanContext*>{&descriptor}, end, num_candidates).front();
+  }
 
  private:
   std::vector<ScanContext> places_;
