@@ -46,7 +46,7 @@ struct TimingStats {
 
 struct MapperStats {
   TimingStats local_factors, local_optimization, global_factors, global_optimization;
-  TimingStats loop_detection;     // descriptors and retrieval, per submap
+  TimingStats loop_detection;     // ScanContext retrieval and matching, per submap (descriptors are made per keyframe)
   TimingStats loop_verification;  // GICP, per candidate
   struct PerSubmap {
     int num_submaps, num_factors;
