@@ -75,6 +75,7 @@ TEST_F(SmallScenario, GlobalMappingIsAccurateAndClosesTheLoop) {
   EXPECT_NE(graph.find("\"final_weight\":0,\"explicit_loop\":true"), std::string::npos);
   for (const char* f : {"stats.json", "config.yaml", "odometry.kitti"}) EXPECT_TRUE(std::filesystem::exists(*dir / ("out/" + std::string(f))));
   EXPECT_NE(slurp(*dir / "out/stats.json").find("\"global_optimization\":{\"mean_ms\":"), std::string::npos);
+  EXPECT_NE(slurp(*dir / "out/stats.json").find("\"final_optimization_ms\":"), std::string::npos);
 }
 
 TEST_F(SmallScenario, CorruptScanInTheMiddleIsSkipped) {

@@ -233,6 +233,7 @@ MapRunResult run_mapping(const MapRunOptions& o) {
     per.push_back(j);
   }
   stats["per_submap"] = per;
+  stats["final_optimization_ms"] = ms.final_optimization_ms;
   write_file_atomic((fs::path(o.output) / "stats.json").string(), [&](std::ostream& s) { s << stats.dump() << "\n"; });
   write_file_atomic((fs::path(o.output) / "config.yaml").string(), [&](std::ostream& s) { s << cfg.to_yaml(); });
 

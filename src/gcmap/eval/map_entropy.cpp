@@ -24,7 +24,7 @@ struct CellGrid {
   int reach = 0;  // cells per radius
   Eigen::Vector3d origin;
   std::vector<uint64_t> cell_keys;  // sorted, unique
-  std::vector<uint32_t> cell_begin; // size cell_keys.size() + 1, into `sorted`
+  std::vector<uint32_t> cell_begin; // size cell_keys.size() + 1, indices into x, y, z
   std::vector<float> x, y, z;       // points in cell order, relative to origin (SoA for the inner loop)
 
   static uint64_t pack(int64_t cx, int64_t cy, int64_t cz) {

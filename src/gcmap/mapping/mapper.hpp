@@ -53,6 +53,7 @@ struct MapperStats {
     double global_optimization_ms;
   };
   std::vector<PerSubmap> per_submap;
+  double final_optimization_ms = 0.0;  // also one sample of global_optimization
 };
 
 class Mapper {
