@@ -66,12 +66,11 @@ void GaussianVoxelMap::finalize() {
 
 double overlap(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& T) {
   if (source.empty()) return 0.0;
-  const Eigen::Matrix3f R = T.linear().cast<float>();
-  const Eigen::Vector3f t = T.translation().cast<float>();
+  const PointTransform X(T);
   const size_t hits = tbb::parallel_reduce(
       tbb::blocked_range<size_t>(0, source.size(), 2048), size_t{0},
       [&](const tbb::blocked_range<size_t>& r, size_t acc) {
-        for (size_t i = r.begin(); i != r.end(); ++i) acc += target.lookup(R * source.points[i] + t) >= 0;
+        for (size_t i = r.begin(); i != r.end(); ++i) acc += target.lookup(X * source.points[i]) >= 0;
         return acc;
       },
       [](size_t a, size_t b) { return a + b; });

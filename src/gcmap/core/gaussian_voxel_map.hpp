@@ -9,6 +9,19 @@
 
 namespace gcmap {
 
+// p -> R p + t in float, rounded step by step in a fixed order (no fused multiply-add): the CUDA
+// kernels evaluate the same expression, so a point on a voxel border picks the same voxel there.
+struct PointTransform {
+  Eigen::Matrix3f R;
+  Eigen::Vector3f t;
+  explicit PointTransform(const Eigen::Isometry3d& T) : R(T.linear().cast<float>()), t(T.translation().cast<float>()) {}
+  Eigen::Vector3f operator*(const Eigen::Vector3f& p) const {
+    return {R(0, 0) * p.x() + R(0, 1) * p.y() + R(0, 2) * p.z() + t.x(),
+            R(1, 0) * p.x() + R(1, 1) * p.y() + R(1, 2) * p.z() + t.y(),
+            R(2, 0) * p.x() + R(2, 1) * p.y() + R(2, 2) * p.z() + t.z()};
+  }
+};
+
 // Integer voxel coordinate of a point at a given inverse resolution.
 inline Eigen::Vector3i voxel_coord(const Eigen::Vector3f& p, float inv_resolution) {
   return Eigen::Vector3i(static_cast<int>(std::floor(p.x() * inv_resolution)),

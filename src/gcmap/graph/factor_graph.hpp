@@ -28,6 +28,11 @@ class LinearizationBackend {
                          std::span<FactorLinearization> out) = 0;
   virtual void trial_errors(std::span<Factor* const> factors, std::span<const FactorPoses> poses,
                             std::span<double> out) = 0;
+  // Paper Eq. 8 for one source against many targets: out[k] = overlap(source -> targets[k]) under
+  // T_target_source[k]. The default runs on the CPU.
+  virtual void overlaps(const std::shared_ptr<const PointCloud>& source,
+                        std::span<const std::shared_ptr<const GaussianVoxelMap>> targets,
+                        std::span<const Eigen::Isometry3d> T_target_source, std::span<double> out);
 };
 
 class CpuBackend : public LinearizationBackend {

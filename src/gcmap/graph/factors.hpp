@@ -50,6 +50,8 @@ class MatchingCostFactor : public Factor {
 
   const PointCloud& source() const { return *source_; }
   const GaussianVoxelMap& target() const { return *target_; }
+  const std::shared_ptr<const PointCloud>& source_ptr() const { return source_; }
+  const std::shared_ptr<const GaussianVoxelMap>& target_ptr() const { return target_; }
 
  private:
   std::shared_ptr<const PointCloud> source_;

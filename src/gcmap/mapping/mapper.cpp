@@ -39,7 +39,10 @@ LMConfig lm_config(int iterations, double relative_error_tol = LMConfig{}.relati
 }
 }  // namespace
 
-Mapper::Mapper(const MappingConfig& config) : config_(config), lm_(lm_config(config.global.max_iterations, config.global.relative_error_tol)) {
+Mapper::Mapper(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend)
+    : config_(config),
+      backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
+      lm_(lm_config(config.global.max_iterations, config.global.relative_error_tol), backend_) {
   config_.validate();
 }
 
@@ -95,7 +98,7 @@ void Mapper::close_submap() {
     for (int b = 1; b < n; ++b)
       for (int a = 0; a < b; ++a) g.add(std::make_shared<MatchingCostFactor>(b, a, open_[b].cloud, open_[a].voxels));
     stats_.local_factors.add(w.lap_ms());
-    LevenbergMarquardt lm(lm_config(config_.local.max_iterations, config_.local.relative_error_tol));
+    LevenbergMarquardt lm(lm_config(config_.local.max_iterations, config_.local.relative_error_tol), backend_);
     lm.optimize(g, local, {0});
     stats_.local_optimization.add(w.lap_ms());
   }
@@ -178,16 +181,21 @@ void Mapper::insert_submap(Submap s) {
 
 int Mapper::connect_overlapping(int id, int first, std::vector<char>& connected) {
   const Submap& cur = submaps_[id];
-  std::vector<std::pair<int, double>> candidates;
+  std::vector<int> candidates;
+  std::vector<std::shared_ptr<const GaussianVoxelMap>> targets;
+  std::vector<Eigen::Isometry3d> T_target_source;
   for (int j = first; j < id; ++j) {
-    if (!connected[j]) candidates.emplace_back(j, 0.0);
+    if (connected[j]) continue;
+    candidates.push_back(j);
+    targets.push_back(submaps_[j].voxels);
+    T_target_source.push_back(values_.at(j).inverse() * values_.at(id));
   }
-  tbb::parallel_for(size_t{0}, candidates.size(), [&](size_t k) {
-    const int j = candidates[k].first;
-    candidates[k].second = overlap(*cur.cloud, *submaps_[j].voxels, values_.at(j).inverse() * values_.at(id));
-  });
+  std::vector<double> overlaps(candidates.size());
+  backend_->overlaps(cur.cloud, targets, T_target_source, overlaps);
   int added = 0;
-  for (const auto& [j, ov] : candidates) {
+  for (size_t k = 0; k < candidates.size(); ++k) {
+    const int j = candidates[k];
+    const double ov = overlaps[k];
     if (ov < config_.global.th_min) continue;
     if (config_.global.factor == "se3") {
       // Ablation "Proposed (SE3)": a relative-pose constraint from kNN GICP scan matching with the
@@ -244,7 +252,7 @@ bool Mapper::close_explicit_loop(int id) {
 void Mapper::finish() {
   close_submap();
   if (graph_.factors.empty()) return;
-  LevenbergMarquardt final_lm(lm_config(config_.global.final_iterations));
+  LevenbergMarquardt final_lm(lm_config(config_.global.final_iterations), backend_);
   Stopwatch w;
   final_lm.optimize(graph_, values_, {0});
   stats_.final_optimization_ms = w.ms();

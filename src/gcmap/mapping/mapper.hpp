@@ -58,7 +58,8 @@ struct MapperStats {
 
 class Mapper {
  public:
-  explicit Mapper(const MappingConfig& config);
+  // backend: where factors are linearized and overlaps computed (default: the CPU).
+  explicit Mapper(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend = nullptr);
 
   // Feeds a preprocessed frame (with covariances) and its odometry pose. Frames must come in order;
   // unusable frames (nullptr) are placed by odometry only.
@@ -101,6 +102,7 @@ class Mapper {
   bool close_explicit_loop(int id);
 
   MappingConfig config_;
+  std::shared_ptr<LinearizationBackend> backend_;
   std::vector<Keyframe> open_;  // keyframes of the submap being built
   std::vector<Submap> submaps_;
   std::vector<FrameRecord> frames_;

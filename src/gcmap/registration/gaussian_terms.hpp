@@ -19,13 +19,6 @@ inline const Eigen::Matrix3f& target_cov(const PointCloud& t, int v) { return t.
 
 constexpr size_t kGrain = 512;
 
-struct Transform {
-  Eigen::Matrix3f R;
-  Eigen::Vector3f t;
-  explicit Transform(const Eigen::Isometry3d& T) : R(T.linear().cast<float>()), t(T.translation().cast<float>()) {}
-  Eigen::Vector3f operator*(const Eigen::Vector3f& p) const { return R * p + t; }
-};
-
 struct PointTerms {
   Eigen::Vector3f q, e;
   Eigen::Matrix3f omega;
@@ -51,7 +44,7 @@ inline bool point_terms(const PointCloud& source, const Target& target, const Ei
 template <class Target, class Associate>
 TargetFrameSums accumulate_target_frame(const PointCloud& source, const Target& target, const Eigen::Isometry3d& T,
                                         Associate associate) {
-  const Transform X(T);
+  const PointTransform X(T);
   return tbb::parallel_deterministic_reduce(
       tbb::blocked_range<size_t>(0, source.size(), kGrain), TargetFrameSums{},
       [&](const tbb::blocked_range<size_t>& r, TargetFrameSums acc) {
@@ -93,7 +86,7 @@ TargetFrameSums accumulate_target_frame(const PointCloud& source, const Target& 
 
 template <class Target, class Associate>
 VgicpError sum_errors(const PointCloud& source, const Target& target, const Eigen::Isometry3d& T, Associate associate) {
-  const Transform X(T);
+  const PointTransform X(T);
   using Pair = std::pair<double, size_t>;
   const Pair sum = tbb::parallel_deterministic_reduce(
       tbb::blocked_range<size_t>(0, source.size(), kGrain), Pair{0.0, 0},

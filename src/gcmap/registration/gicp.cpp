@@ -15,7 +15,7 @@ std::vector<int> find_correspondences(const PointCloud& source, const GicpTarget
                                       const Eigen::Isometry3d& T_target_source, double max_distance) {
   std::vector<int> out(source.size(), -1);
   if (target.cloud().empty()) return out;
-  const detail::Transform X(T_target_source);
+  const PointTransform X(T_target_source);
   const float max_sq = static_cast<float>(max_distance * max_distance);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, source.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i != r.end(); ++i) {

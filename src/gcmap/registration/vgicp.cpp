@@ -32,7 +32,7 @@ VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& targ
 
 VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
                           const Eigen::Isometry3d& T_target_source, const Eigen::Isometry3d& T_association) {
-  const detail::Transform A(T_association);
+  const PointTransform A(T_association);
   return detail::sum_errors(source, target, T_target_source,
                             [&](size_t i, const Eigen::Vector3f&) { return target.lookup(A * source.points[i]); });
 }
