@@ -25,8 +25,10 @@ struct Overrides {
   bool pcd = false;
   bool no_explicit_loops = false;
   int threads = 0;
+  std::string device = "auto";
 
   void add(CLI::App* cmd) {
+    cmd->add_option("--device", device, "cpu, cuda or auto (a GPU when one answers)")->capture_default_str();
     cmd->add_option("--config", config_file, "YAML configuration (see `gcmap config`)");
     cmd->add_option("--global-mode", global_mode, "full (default) or sliding-window");
     cmd->add_option("--window", window, "sliding-window: predecessors each submap connects to (default 5)");
@@ -71,6 +73,7 @@ void add_map(CLI::App& app, Runner& run) {
     run = [opt, ov] {
       const auto threads = limit_threads(ov->threads);
       opt->config = ov->resolve();
+      opt->device = ov->device;
       const MapRunResult r = run_mapping(*opt);
       std::printf("{\"frames\":%zu,\"submaps\":%zu,\"factors\":%zu,\"seconds\":%.3f,\"frames_per_second\":%.2f}\n", r.frames,
                   r.submaps, r.factors, r.seconds, r.fps);
@@ -118,6 +121,7 @@ void add_demo(CLI::App& app, Runner& run) {
       mo.input = (dir / "sim").string();
       mo.output = (dir / "map").string();
       mo.config = ov->resolve();
+      mo.device = ov->device;
       mo.quiet = false;
       std::printf("mapping %s ...\n", mo.input.c_str());
       std::fflush(stdout);

@@ -3,6 +3,7 @@
 #include "commands.hpp"
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/preprocess.hpp"
+#include "gcmap/cuda/cuda_backend.hpp"
 #include "gcmap/graph/levenberg_marquardt.hpp"
 #include "gcmap/graph/matching_graph.hpp"
 #include "gcmap/io/json.hpp"
@@ -17,6 +18,7 @@ struct OptimizeOptions {
   std::vector<std::string> clouds;
   double min_overlap = 0.025, voxel = 1.0, downsample = 0.0;
   int max_iterations = 50, threads = 0;
+  std::string device = "auto";
 };
 }  // namespace
 
@@ -32,6 +34,7 @@ void add_optimize(CLI::App& app, Runner& run) {
   cmd->add_option("--bin-fields", opt->bin_fields, "Layout of .bin files: xyzi (KITTI) or xyz")->capture_default_str();
   cmd->add_option("--max-iterations", opt->max_iterations, "LM iteration limit")->capture_default_str();
   cmd->add_option("--threads", opt->threads, "Worker threads (0 = all cores)")->capture_default_str();
+  cmd->add_option("--device", opt->device, "cpu, cuda or auto (a GPU when one answers)")->capture_default_str();
   cmd->footer("The first pose is held fixed. Prints one JSON object; exit code 2 on bad input.");
   cmd->callback([opt, &run] {
     run = [opt] {
@@ -60,11 +63,12 @@ void add_optimize(CLI::App& app, Runner& run) {
         nodes[k] = {std::make_shared<const PointCloud>(std::move(c)), voxels};
         values[static_cast<int>(k)] = traj.poses[k];
       }
+      const std::shared_ptr<LinearizationBackend> backend = cuda::make_backend(o.device);
       FactorGraph graph;
-      add_overlapping_pairs(graph, nodes, values, o.min_overlap);
+      add_overlapping_pairs(graph, nodes, values, o.min_overlap, backend.get());
       LMConfig config;
       config.max_iterations = o.max_iterations;
-      LevenbergMarquardt lm(config);
+      LevenbergMarquardt lm(config, backend);
       const LMResult r = lm.optimize(graph, values, {0});
 
       for (size_t k = 0; k < traj.size(); ++k) traj.poses[k] = values.at(static_cast<int>(k));

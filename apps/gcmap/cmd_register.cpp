@@ -5,6 +5,9 @@
 #include "gcmap/core/gaussian_voxel_map.hpp"
 #include "gcmap/core/preprocess.hpp"
 #include "gcmap/core/timer.hpp"
+#include "gcmap/cuda/cuda_backend.hpp"
+#include "gcmap/graph/levenberg_marquardt.hpp"
+#include "gcmap/registration/vgicp.hpp"
 #include "gcmap/io/json.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/registration/registration.hpp"
@@ -16,6 +19,7 @@ struct RegisterOptions {
   std::string target, source, init, bin_fields = "xyzi";
   double downsample = 0.25, voxel = 1.0;
   int threads = 0, max_iterations = 64;
+  std::string device = "auto";
 };
 }  // namespace
 
@@ -30,6 +34,7 @@ void add_register(CLI::App& app, Runner& run) {
   cmd->add_option("--max-iterations", opt->max_iterations, "LM iteration limit")->capture_default_str();
   cmd->add_option("--threads", opt->threads, "Worker threads (0 = all cores)")->capture_default_str();
   cmd->add_option("--bin-fields", opt->bin_fields, "Layout of .bin files: xyzi (KITTI) or xyz")->capture_default_str();
+  cmd->add_option("--device", opt->device, "cpu, cuda or auto (a GPU when one answers)")->capture_default_str();
   cmd->footer("Exit code: 0 converged, 1 not converged, 2 bad input.");
   cmd->callback([opt, &run] {
     run = [opt] {
@@ -54,13 +59,33 @@ void add_register(CLI::App& app, Runner& run) {
       estimate_covariances(target);
       estimate_covariances(source);
       const double t_pre = watch.lap_ms();
-      GaussianVoxelMap voxels(o.voxel);
-      voxels.insert(target);
-      voxels.finalize();
+      const std::shared_ptr<LinearizationBackend> backend = cuda::make_backend(o.device);
+      auto voxel_map = std::make_shared<GaussianVoxelMap>(o.voxel);
+      voxel_map->insert(target);
+      voxel_map->finalize();
+      const GaussianVoxelMap& voxels = *voxel_map;
       const double t_vox = watch.lap_ms();
-      RegistrationConfig config;
-      config.max_iterations = o.max_iterations;
-      const RegistrationResult r = align_vgicp(source, voxels, init, config);
+      RegistrationResult r;
+      if (dynamic_cast<const CpuBackend*>(backend.get())) {
+        RegistrationConfig config;
+        config.max_iterations = o.max_iterations;
+        r = align_vgicp(source, voxels, init, config);
+      } else {
+        // On the GPU: the same cost as a two-pose graph (target fixed) through the backend.
+        auto source_ptr = std::make_shared<const PointCloud>(source);
+        FactorGraph graph;
+        graph.add(std::make_shared<MatchingCostFactor>(1, 0, source_ptr, voxel_map));
+        Values values{{0, Eigen::Isometry3d::Identity()}, {1, init}};
+        LMConfig config;
+        config.max_iterations = o.max_iterations;
+        const LMResult lm = LevenbergMarquardt(config, backend).optimize(graph, values, {0});
+        r.T_target_source = values.at(1);
+        r.converged = lm.converged;
+        r.iterations = lm.iterations;
+        const VgicpError e = evaluate_vgicp(source, voxels, r.T_target_source);
+        r.error = e.error;
+        r.num_inliers = e.num_inliers;
+      }
       const double t_align = watch.lap_ms();
 
       Json out = Json::object();

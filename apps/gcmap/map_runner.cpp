@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "gcmap/cuda/cuda_backend.hpp"
 #include "gcmap/core/error.hpp"
 #include "gcmap/mapping/preprocess_scan.hpp"
 #include "gcmap/core/timer.hpp"
@@ -105,7 +106,8 @@ MapRunResult run_mapping(const MapRunOptions& o) {
   const bool progress = !o.quiet && isatty(2);
 
   Odometry odometry(cfg.odometry);
-  Mapper mapper(cfg);
+  const std::shared_ptr<LinearizationBackend> backend = cuda::make_backend(o.device);
+  Mapper mapper(cfg, backend);
   std::vector<Eigen::Isometry3d> odom_poses;
   TimingStats t_pre, t_odom;
   Stopwatch total;

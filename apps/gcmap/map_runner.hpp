@@ -10,6 +10,7 @@ struct MapRunOptions {
   std::string input, output, initial_trajectory;
   MappingConfig config;
   int start = 0, max_frames = 0;
+  std::string device = "auto";  // cpu, cuda or auto
   bool quiet = false;
 };
 

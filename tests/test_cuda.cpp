@@ -1,0 +1,204 @@
+// The CUDA backend: the device voxel table's probing and growth (shared with the kernels, checked
+// here on the host), backend selection, and CPU/GPU parity on real clouds where a GPU answers.
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "gcmap/core/error.hpp"
+#include "gcmap/core/preprocess.hpp"
+#include "gcmap/cuda/cuda_backend.hpp"
+#include "gcmap/cuda/voxel_hash.hpp"
+#include "gcmap/graph/levenberg_marquardt.hpp"
+#include "gcmap/graph/matching_graph.hpp"
+#include "gcmap/io/point_cloud_io.hpp"
+#include "gcmap/io/trajectory_io.hpp"
+#include "test_util.hpp"
+
+namespace gcmap {
+namespace {
+
+using cuda::VoxelSlot;
+
+// The kernel's insertion with a host compare-and-swap, under the kernel's growth policy.
+struct HostTable {
+  std::vector<VoxelSlot> slots;
+  uint32_t mask = 0;
+  bool build(const std::vector<Eigen::Vector3i>& coords, uint32_t max_slots) {
+    const uint32_t n = cuda::grow_voxel_table(coords.size(), max_slots, [&](uint32_t capacity) {
+      slots.assign(capacity, VoxelSlot{-1, -1, -1, -1});
+      mask = capacity - 1;
+      const auto claim = [](int32_t* field, int32_t index) {
+        if (*field != -1) return false;
+        *field = index;
+        return true;
+      };
+      for (size_t i = 0; i < coords.size(); ++i)
+        if (!cuda::voxel_table_insert(slots.data(), mask, coords[i].x(), coords[i].y(), coords[i].z(), static_cast<int32_t>(i), claim))
+          return false;
+      return true;
+    });
+    return n != 0;
+  }
+  int32_t find(const Eigen::Vector3i& c) const { return cuda::voxel_table_find(slots.data(), mask, c.x(), c.y(), c.z()); }
+};
+
+TEST(VoxelTable, KeepsEveryVoxelOfADenseBlockAndFindsNoOther) {
+  // 64 x 64 x 32 neighbouring voxels: the adjacent keys a real map has, 131072 of them.
+  std::vector<Eigen::Vector3i> coords;
+  for (int x = -32; x < 32; ++x)
+    for (int y = -32; y < 32; ++y)
+      for (int z = -4; z < 28; ++z) coords.emplace_back(x, y, z);
+  HostTable t;
+  ASSERT_TRUE(t.build(coords, 1u << 22));
+  EXPECT_LE(coords.size() * 2, t.mask + 1);
+  for (size_t i = 0; i < coords.size(); ++i) ASSERT_EQ(t.find(coords[i]), static_cast<int32_t>(i)) << i;
+  EXPECT_EQ(t.find({32, 0, 0}), -1);
+  EXPECT_EQ(t.find({0, 0, -5}), -1);
+  EXPECT_EQ(t.find({1000000, -1000000, 7}), -1);
+}
+
+TEST(VoxelTable, GrowsPastAProbeOverflowAndFailsCleanlyAtTheCap) {
+  // Keys chosen so that all share their home slot in tables of up to 1024 slots: more of them than
+  // kMaxProbes overflow the probe window until the table is big enough to tell them apart.
+  std::vector<Eigen::Vector3i> coords;
+  const uint32_t home = cuda::voxel_slot_hash(0, 0, 0) & 1023u;
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> u(-100000, 100000);
+  while (coords.size() < 2 * cuda::kMaxProbes) {
+    const Eigen::Vector3i c(u(rng), u(rng), u(rng));
+    if ((cuda::voxel_slot_hash(c.x(), c.y(), c.z()) & 1023u) == home) coords.push_back(c);
+  }
+  HostTable t;
+  EXPECT_FALSE(t.build(coords, 1024));  // every size up to the cap overflows
+  ASSERT_TRUE(t.build(coords, 1u << 20));
+  EXPECT_GT(t.mask + 1, 1024u);
+  for (size_t i = 0; i < coords.size(); ++i) EXPECT_EQ(t.find(coords[i]), static_cast<int32_t>(i));
+  EXPECT_EQ(cuda::grow_voxel_table(100, 64, [](uint32_t) { return true; }), 0u);  // cap below the first size
+}
+
+TEST(Device, BackendSelection) {
+  EXPECT_NE(dynamic_cast<CpuBackend*>(cuda::make_backend("cpu").get()), nullptr);
+  EXPECT_THROW(cuda::make_backend("gpu"), Error);
+  std::string why;
+  if (cuda::device_available(&why)) {
+    EXPECT_NE(dynamic_cast<cuda::CudaBackend*>(cuda::make_backend("auto").get()), nullptr);
+  } else {
+    // A binary with or without CUDA runs here: auto falls back, cuda is refused with the reason.
+    EXPECT_FALSE(why.empty());
+    EXPECT_NE(dynamic_cast<CpuBackend*>(cuda::make_backend("auto").get()), nullptr);
+    try {
+      cuda::make_backend("cuda");
+      ADD_FAILURE() << "--device cuda without a GPU must fail";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("--device cuda"), std::string::npos) << e.what();
+    }
+  }
+}
+
+#define GCMAP_REQUIRE_GPU()                                                              \
+  do {                                                                                   \
+    std::string why;                                                                     \
+    if (!cuda::device_available(&why)) GTEST_SKIP() << "no CUDA device (" << why << ")"; \
+  } while (0)
+
+class GpuParity : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    GCMAP_REQUIRE_GPU();
+    GCMAP_REQUIRE_SHARED_DATA("kitti07_submaps");
+    const std::string dir = test::shared_data() + "/kitti07_submaps";
+    reference = read_trajectory(dir + "/graph.txt");
+    for (int k = 0; k < 5; ++k) {
+      PointCloud c = read_point_cloud(dir + "/00000" + std::to_string(k) + "/points.bin", BinFields::xyz);
+      estimate_covariances(c);
+      auto v = std::make_shared<GaussianVoxelMap>(1.0);
+      v->insert(c);
+      v->finalize();
+      nodes.push_back({std::make_shared<const PointCloud>(std::move(c)), v});
+    }
+    gpu = std::make_shared<cuda::CudaBackend>();
+  }
+  Trajectory reference;
+  std::vector<ScanNode> nodes;
+  std::shared_ptr<cuda::CudaBackend> gpu;
+};
+
+double relative_difference(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) { return (a - b).norm() / std::max(b.norm(), 1e-30); }
+
+TEST_F(GpuParity, LinearizationTrialErrorsAndOverlapMatchTheCpu) {
+  // Every ordered pair at random poses near the reference (0.05 rad, 0.5 m).
+  std::mt19937_64 rng(11);
+  Values values;
+  for (int k = 0; k < 5; ++k) values[k] = reference.poses[k] * test::random_pose(rng, 0.05, 0.5);
+  FactorGraph graph;
+  for (int j = 0; j < 5; ++j)
+    for (int i = 0; i < 5; ++i)
+      if (i != j) graph.add(std::make_shared<MatchingCostFactor>(j, i, nodes[j].cloud, nodes[i].voxels));
+  std::vector<Factor*> factors;
+  std::vector<FactorPoses> poses;
+  for (const auto& f : graph.factors) {
+    factors.push_back(f.get());
+    poses.push_back({&values.at(f->keys()[0]), &values.at(f->keys()[1])});
+  }
+  std::vector<FactorLinearization> on_cpu(factors.size()), on_gpu(factors.size());
+  CpuBackend cpu;
+  cpu.linearize(factors, poses, on_cpu);
+  gpu->linearize(factors, poses, on_gpu);
+  // Float per point on both sides, double across blocks: differences come from summation order.
+  for (size_t f = 0; f < factors.size(); ++f) {
+    for (int a = 0; a < 2; ++a) {
+      for (int b = 0; b < 2; ++b) EXPECT_LT(relative_difference(on_gpu[f].H.block<6, 6>(6 * a, 6 * b), on_cpu[f].H.block<6, 6>(6 * a, 6 * b)), 1e-4) << f;
+      EXPECT_LT(relative_difference(on_gpu[f].b.segment<6>(6 * a), on_cpu[f].b.segment<6>(6 * a)), 1e-4) << f;
+    }
+    EXPECT_NEAR(on_gpu[f].error, on_cpu[f].error, 1e-4 * on_cpu[f].error) << f;
+  }
+  // Trial errors at moved poses with the association of that linearization.
+  Values moved = values;
+  for (int k = 1; k < 5; ++k) moved[k] = values[k] * test::random_pose(rng, 0.01, 0.1);
+  for (size_t f = 0; f < factors.size(); ++f) poses[f] = {&moved.at(factors[f]->keys()[0]), &moved.at(factors[f]->keys()[1])};
+  std::vector<double> trial_cpu(factors.size()), trial_gpu(factors.size());
+  cpu.trial_errors(factors, poses, trial_cpu);
+  gpu->trial_errors(factors, poses, trial_gpu);
+  for (size_t f = 0; f < factors.size(); ++f) EXPECT_NEAR(trial_gpu[f], trial_cpu[f], 1e-4 * trial_cpu[f]) << f;
+  // Overlap: the same points in the same voxels, so identical values.
+  for (int j = 0; j < 5; ++j) {
+    std::vector<std::shared_ptr<const GaussianVoxelMap>> targets;
+    std::vector<Eigen::Isometry3d> T;
+    for (int i = 0; i < 5; ++i) {
+      targets.push_back(nodes[i].voxels);
+      T.push_back(values.at(i).inverse() * values.at(j));
+    }
+    std::vector<double> ov_cpu(5), ov_gpu(5);
+    cpu.overlaps(nodes[j].cloud, targets, T, ov_cpu);
+    gpu->overlaps(nodes[j].cloud, targets, T, ov_gpu);
+    for (int i = 0; i < 5; ++i) EXPECT_EQ(ov_gpu[i], ov_cpu[i]) << j << " -> " << i;
+  }
+  const cuda::DeviceMemory m = gpu->memory();
+  EXPECT_EQ(m.num_clouds, 5u);
+  EXPECT_EQ(m.num_maps, 5u);
+  // Released only once the host objects are gone.
+  gpu->release_unused();
+  EXPECT_EQ(gpu->memory().num_clouds, 5u);
+}
+
+TEST_F(GpuParity, OptimizeGivesTheSamePosesOnBothDevices) {
+  std::mt19937_64 rng(3);
+  Values start;
+  for (int k = 0; k < 5; ++k) start[k] = k == 0 ? reference.poses[k] : reference.poses[k] * test::random_pose(rng, 0.05, 0.3);
+  const auto solve = [&](std::shared_ptr<LinearizationBackend> backend) {
+    Values values = start;
+    FactorGraph graph;
+    add_overlapping_pairs(graph, nodes, values, 0.025, backend.get());
+    LevenbergMarquardt(LMConfig{}, backend).optimize(graph, values, {0});
+    return values;
+  };
+  const Values cpu = solve(std::make_shared<CpuBackend>());
+  const Values gpu_result = solve(gpu);
+  for (int k = 0; k < 5; ++k) {
+    EXPECT_LT(test::translation_error(gpu_result.at(k), cpu.at(k)), 1e-3) << k;
+    EXPECT_LT(test::rotation_error_deg(gpu_result.at(k), cpu.at(k)), 0.01) << k;
+  }
+}
+
+}  // namespace
+}  // namespace gcmap
