@@ -5,14 +5,11 @@
 #include <tbb/global_control.h>
 
 #include <cstdio>
-#include <filesystem>
 
-#include "gcmap/core/preprocess.hpp"
 #include "gcmap/core/timer.hpp"
 #include "gcmap/cuda/cuda_backend.hpp"
 #include "gcmap/graph/levenberg_marquardt.hpp"
-#include "gcmap/io/point_cloud_io.hpp"
-#include "gcmap/io/trajectory_io.hpp"
+#include "kitti07_graph.hpp"
 
 using namespace gcmap;
 
@@ -53,41 +50,21 @@ int main() {
     std::printf("skipped: no CUDA device (%s)\n", why.c_str());
     return 0;
   }
-  const std::string dir = std::string(GCMAP_SHARED_DATA) + "/kitti07_submaps";
-  if (!std::filesystem::exists(dir)) {
-    std::printf("skipped: %s is absent\n", dir.c_str());
+  const std::optional<bench::Kitti07> data = bench::Kitti07::load();
+  if (!data) {
+    std::printf("skipped: ../shared/data/kitti07_submaps is absent\n");
     return 0;
   }
-  const Trajectory ref = read_trajectory(dir + "/graph.txt");
-  std::vector<std::shared_ptr<const PointCloud>> clouds;
-  std::vector<std::shared_ptr<const GaussianVoxelMap>> maps;
-  size_t total_points = 0;
-  for (int k = 0; k < 5; ++k) {
-    PointCloud c = read_point_cloud(dir + "/00000" + std::to_string(k) + "/points.bin", BinFields::xyz);
-    estimate_covariances(c);
-    auto v = std::make_shared<GaussianVoxelMap>(1.0);
-    v->insert(c);
-    v->finalize();
-    total_points += c.size();
-    clouds.push_back(std::make_shared<const PointCloud>(std::move(c)));
-    maps.push_back(v);
-  }
-  const size_t points_per_factor = total_points / 5;
+  const size_t points_per_factor = data->points_per_cloud;
+  const std::vector<ScanNode>& nodes = data->nodes;
+  const Trajectory& ref = data->reference;
   auto gpu = std::make_shared<cuda::CudaBackend>();
   std::printf("device: %s; %zu points per factor on average\n", gpu->device_name().c_str(), points_per_factor);
 
   for (int num_factors : {10, 100, 1000, 4500}) {
-    // As bench_graph: variables cycle through the 5 clouds; every factor is a real overlapping pair.
-    const int num_vars = std::max(5, num_factors / 5);
-    Values values;
-    for (int v = 0; v < num_vars; ++v) values[v] = ref.poses[v % 5];
     FactorGraph graph;
-    for (int f = 0; graph.factors.size() < static_cast<size_t>(num_factors); ++f) {
-      const int u = f % num_vars, step = 1 + (f / num_vars) % 4;
-      const int v = (u + step) % num_vars;
-      if (u % 5 == v % 5) continue;
-      graph.add(std::make_shared<MatchingCostFactor>(u, v, clouds[u % 5], maps[v % 5]));
-    }
+    Values values;
+    data->make_graph(num_factors, graph, values);
     const double evaluations = static_cast<double>(num_factors) * points_per_factor;
     const Timing g = time_backend(*gpu, graph, values, 20);
     Timing c;
@@ -115,15 +92,15 @@ int main() {
     std::vector<std::shared_ptr<const GaussianVoxelMap>> targets;
     std::vector<Eigen::Isometry3d> T;
     for (int k = 0; k < num_targets; ++k) {
-      targets.push_back(maps[1 + k % 4]);
+      targets.push_back(nodes[1 + k % 4].voxels);
       T.push_back(ref.poses[1 + k % 4].inverse() * ref.poses[0]);
     }
     std::vector<double> out(num_targets);
-    gpu->overlaps(clouds[0], targets, T, out);
+    gpu->overlaps(nodes[0].cloud, targets, T, out);
     Stopwatch w;
-    for (int r = 0; r < 20; ++r) gpu->overlaps(clouds[0], targets, T, out);
+    for (int r = 0; r < 20; ++r) gpu->overlaps(nodes[0].cloud, targets, T, out);
     const double ms = w.ms() / 20;
-    std::printf("overlap: 1 source (%zu points) x %d targets: %.3f ms per launch, %.4f ms per pair\n", clouds[0]->size(), num_targets, ms,
+    std::printf("overlap: 1 source (%zu points) x %d targets: %.3f ms per launch, %.4f ms per pair\n", nodes[0].cloud->size(), num_targets, ms,
                 ms / num_targets);
   }
   const cuda::DeviceMemory m = gpu->memory();

@@ -5,7 +5,6 @@
 #include <vector>
 
 #include "gcmap/core/error.hpp"
-#include "gcmap/core/preprocess.hpp"
 #include "gcmap/cuda/cuda_backend.hpp"
 #include "gcmap/cuda/voxel_hash.hpp"
 #include "gcmap/graph/levenberg_marquardt.hpp"
@@ -109,12 +108,7 @@ class GpuParity : public ::testing::Test {
     const std::string dir = test::shared_data() + "/kitti07_submaps";
     reference = read_trajectory(dir + "/graph.txt");
     for (int k = 0; k < 5; ++k) {
-      PointCloud c = read_point_cloud(dir + "/00000" + std::to_string(k) + "/points.bin", BinFields::xyz);
-      estimate_covariances(c);
-      auto v = std::make_shared<GaussianVoxelMap>(1.0);
-      v->insert(c);
-      v->finalize();
-      nodes.push_back({std::make_shared<const PointCloud>(std::move(c)), v});
+      nodes.push_back(make_scan_node(read_point_cloud(dir + "/00000" + std::to_string(k) + "/points.bin", BinFields::xyz), 1.0));
     }
     gpu = std::make_shared<cuda::CudaBackend>();
   }

@@ -181,12 +181,7 @@ class Kitti07 : public ::testing::Test {
     const std::string dir = test::shared_data() + "/kitti07_submaps";
     reference = read_trajectory(dir + "/graph.txt");
     for (int k = 0; k < 5; ++k) {
-      PointCloud c = read_point_cloud(dir + "/00000" + std::to_string(k) + "/points.bin", BinFields::xyz);
-      estimate_covariances(c);
-      auto v = std::make_shared<GaussianVoxelMap>(1.0);
-      v->insert(c);
-      v->finalize();
-      nodes.push_back({std::make_shared<const PointCloud>(std::move(c)), v});
+      nodes.push_back(make_scan_node(read_point_cloud(dir + "/00000" + std::to_string(k) + "/points.bin", BinFields::xyz), 1.0));
     }
   }
   Values solve(Values values) {

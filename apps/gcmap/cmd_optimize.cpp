@@ -56,11 +56,7 @@ void add_optimize(CLI::App& app, Runner& run) {
         PointCloud c = read_point_cloud(o.clouds[k], fields);
         if (o.downsample > 0) c = voxel_downsample(c, o.downsample);
         if (c.size() < 10) throw Error(o.clouds[k] + ": too few points (" + std::to_string(c.size()) + ")");
-        estimate_covariances(c);
-        auto voxels = std::make_shared<GaussianVoxelMap>(o.voxel);
-        voxels->insert(c);
-        voxels->finalize();
-        nodes[k] = {std::make_shared<const PointCloud>(std::move(c)), voxels};
+        nodes[k] = make_scan_node(std::move(c), o.voxel);
         values[static_cast<int>(k)] = traj.poses[k];
       }
       const std::shared_ptr<LinearizationBackend> backend = cuda::make_backend(o.device);

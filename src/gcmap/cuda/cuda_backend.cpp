@@ -181,14 +181,7 @@ void CudaBackend::linearize(std::span<Factor* const> factors, std::span<const Fa
   tbb::parallel_for(size_t{0}, on_host.size(), [&](size_t k) { factors[on_host[k]]->linearize(poses[on_host[k]].data(), out[on_host[k]]); });
   impl_->batch.linearize(impl_->poses.data(), impl_->sums.data());
   for (size_t k = 0; k < on_device.size(); ++k) {
-    const VgicpLinearization lin = expand_to_both_poses(unpack(impl_->sums.data() + device::kSums * k), T[k]);
-    FactorLinearization& o = out[on_device[k]];
-    o.H.topLeftCorner<6, 6>() = lin.H_ii;
-    o.H.topRightCorner<6, 6>() = lin.H_ij;
-    o.H.bottomLeftCorner<6, 6>() = lin.H_ij.transpose();
-    o.H.bottomRightCorner<6, 6>() = lin.H_jj;
-    o.b << lin.b_i, lin.b_j;
-    o.error = lin.error;
+    to_factor_linearization(expand_to_both_poses(unpack(impl_->sums.data() + device::kSums * k), T[k]), out[on_device[k]]);
   }
 }
 

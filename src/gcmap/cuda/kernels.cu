@@ -128,15 +128,20 @@ __device__ __forceinline__ void accumulate(float3 q, float3 e, const Sym3& w, Su
   s.v[28] = 1.f;
 }
 
+// The block's pair, and its pose staged in shared memory for all threads.
+__device__ __forceinline__ PairView block_pair_and_pose(const PairView* pairs, const int32_t* block_pair, const float* poses, float* T) {
+  const int pair = block_pair[blockIdx.x];
+  if (threadIdx.x < 12) T[threadIdx.x] = poses[12 * pair + threadIdx.x];
+  __syncthreads();
+  return pairs[pair];
+}
+
 __global__ void linearize_kernel(const PairView* pairs, const int32_t* block_pair, const uint32_t* block_begin,
                                  const float* poses, int32_t* voxel_of_point, float* block_sums) {
   using Reduce = cub::BlockReduce<Sums, kThreads>;
   __shared__ typename Reduce::TempStorage scratch;
   __shared__ float T[12];
-  const int pair = block_pair[blockIdx.x];
-  const PairView P = pairs[pair];
-  if (threadIdx.x < 12) T[threadIdx.x] = poses[12 * pair + threadIdx.x];
-  __syncthreads();
+  const PairView P = block_pair_and_pose(pairs, block_pair, poses, T);
   Sums s;
 #pragma unroll
   for (int k = 0; k < kSums; ++k) s.v[k] = 0.f;
@@ -182,10 +187,7 @@ __global__ void trial_kernel(const PairView* pairs, const int32_t* block_pair, c
   using Reduce = cub::BlockReduce<ErrorSums, kThreads>;
   __shared__ typename Reduce::TempStorage scratch;
   __shared__ float T[12];
-  const int pair = block_pair[blockIdx.x];
-  const PairView P = pairs[pair];
-  if (threadIdx.x < 12) T[threadIdx.x] = poses[12 * pair + threadIdx.x];
-  __syncthreads();
+  const PairView P = block_pair_and_pose(pairs, block_pair, poses, T);
   ErrorSums s{0.f, 0.f};
   const uint32_t i = block_begin[blockIdx.x] + threadIdx.x;
   if (i < P.num_points) {

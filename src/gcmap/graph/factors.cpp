@@ -14,7 +14,10 @@ MatchingCostFactor::MatchingCostFactor(int source_key, int target_key, std::shar
 
 void MatchingCostFactor::linearize(const Eigen::Isometry3d* const* poses, FactorLinearization& out) {
   T_lin_ = poses[1]->inverse() * *poses[0];
-  const VgicpLinearization lin = linearize_vgicp(*source_, *target_, T_lin_);
+  to_factor_linearization(linearize_vgicp(*source_, *target_, T_lin_), out);
+}
+
+void to_factor_linearization(const VgicpLinearization& lin, FactorLinearization& out) {
   out.H.topLeftCorner<6, 6>() = lin.H_ii;
   out.H.topRightCorner<6, 6>() = lin.H_ij;
   out.H.bottomLeftCorner<6, 6>() = lin.H_ij.transpose();

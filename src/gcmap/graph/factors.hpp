@@ -38,6 +38,10 @@ class Factor {
   std::array<int, 2> keys_{-1, -1};
 };
 
+struct VgicpLinearization;
+// The two-pose blocks of a VGICP linearization in factor layout (source pose first).
+void to_factor_linearization(const VgicpLinearization& lin, FactorLinearization& out);
+
 // VGICP matching cost between a source cloud (key i) and a target voxel map (key j), paper Eq. 1-6.
 // Association and fused covariances are recomputed at every linearization.
 class MatchingCostFactor : public Factor {

@@ -1,6 +1,16 @@
 #include "gcmap/graph/matching_graph.hpp"
 
+#include "gcmap/core/preprocess.hpp"
+
 namespace gcmap {
+
+ScanNode make_scan_node(PointCloud cloud, double voxel_resolution) {
+  estimate_covariances(cloud);
+  auto voxels = std::make_shared<GaussianVoxelMap>(voxel_resolution);
+  voxels->insert(cloud);
+  voxels->finalize();
+  return {std::make_shared<const PointCloud>(std::move(cloud)), voxels};
+}
 
 std::vector<PairOverlap> add_overlapping_pairs(FactorGraph& graph, const std::vector<ScanNode>& nodes,
                                                const Values& values, double min_overlap, LinearizationBackend* backend) {

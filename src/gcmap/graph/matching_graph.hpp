@@ -11,6 +11,9 @@ struct ScanNode {
   std::shared_ptr<const GaussianVoxelMap> voxels;
 };
 
+// Estimates the cloud's covariances and builds its voxel map.
+ScanNode make_scan_node(PointCloud cloud, double voxel_resolution);
+
 struct PairOverlap {
   int source, target;
   double overlap;  // overlap(source -> target) at the given poses

@@ -43,6 +43,7 @@ void visit(Config& c, Visitor&& v) {
   v("global", "max_iterations", c.global.max_iterations);
   v("global", "relative_error_tol", c.global.relative_error_tol);
   v("global", "final_iterations", c.global.final_iterations);
+  v("global", "factor_source_points", c.global.factor_source_points);
   v("loop", "enabled", c.loop.enabled);
   v("loop", "rings", c.loop.scan_context.rings);
   v("loop", "sectors", c.loop.scan_context.sectors);
@@ -139,6 +140,7 @@ void MappingConfig::validate() const {
   need(local.max_keyframes >= 2, "local.max_keyframes must be >= 2");
   need(local.voxel_resolution > 0 && local.submap_downsample > 0, "local resolutions must be positive");
   need(local.max_submap_points >= 1000, "local.max_submap_points must be >= 1000");
+  need(global.factor_source_points >= 1000, "global.factor_source_points must be >= 1000");
   need(global.th_min >= 0 && global.th_min <= 1, "global.th_min must be in [0, 1]");
   need(global.voxel_resolution > 0, "global.voxel_resolution must be positive");
   need(global.mode == "full" || global.mode == "sliding-window", "global.mode must be full or sliding-window");

@@ -44,6 +44,9 @@ struct GlobalMappingConfig {
   int max_iterations = 10;        // per insertion (warm-started)
   double relative_error_tol = 1e-4;  // per insertion; the final optimization runs to 1e-6
   int final_iterations = 50;
+  // Points of a submap used as the source of its matching-cost factors and overlaps (an even
+  // subsample; target voxel maps keep every point). The global graph's cost is linear in it.
+  int factor_source_points = 20000;
 };
 
 // Explicit loops (paper Section III-C): ScanContext candidates between keyframes, GICP

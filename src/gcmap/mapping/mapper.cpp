@@ -31,6 +31,16 @@ double TimingStats::max() const {
 }
 
 namespace {
+// At most n points, by an even stride: deterministic and spatially uniform (points are in voxel order).
+PointCloud evenly_subsampled(PointCloud cloud, int n) {
+  if (static_cast<int>(cloud.size()) <= n) return cloud;
+  std::vector<char> keep(cloud.size(), 0);
+  const double stride = static_cast<double>(cloud.size()) / n;
+  for (int i = 0; i < n; ++i) keep[static_cast<size_t>(i * stride)] = 1;
+  cloud.filter(keep);
+  return cloud;
+}
+
 LMConfig lm_config(int iterations, double relative_error_tol = LMConfig{}.relative_error_tol) {
   LMConfig c;
   c.max_iterations = iterations;
@@ -112,16 +122,11 @@ void Mapper::close_submap() {
     merged.covs.insert(merged.covs.end(), c.covs.begin(), c.covs.end());
   }
   merged = voxel_downsample(merged, config_.local.submap_downsample);
-  if (static_cast<int>(merged.size()) > config_.local.max_submap_points) {
-    // Even stride keeps the cap deterministic and spatially uniform (points are in voxel order).
-    std::vector<char> keep(merged.size(), 0);
-    const double stride = static_cast<double>(merged.size()) / config_.local.max_submap_points;
-    for (int i = 0; i < config_.local.max_submap_points; ++i) keep[static_cast<size_t>(i * stride)] = 1;
-    merged.filter(keep);
-  }
+  merged = evenly_subsampled(std::move(merged), config_.local.max_submap_points);
   auto voxels = std::make_shared<GaussianVoxelMap>(config_.global.voxel_resolution);
   voxels->insert(merged);
   voxels->finalize();
+  s.factor_source = std::make_shared<const PointCloud>(evenly_subsampled(merged, config_.global.factor_source_points));
   s.cloud = std::make_shared<const PointCloud>(std::move(merged));
   s.voxels = voxels;
   for (int k = 0; k < n; ++k) keyframe_location_[open_[k].frame] = {s.id, k};
@@ -191,7 +196,7 @@ int Mapper::connect_overlapping(int id, int first, std::vector<char>& connected)
     T_target_source.push_back(values_.at(j).inverse() * values_.at(id));
   }
   std::vector<double> overlaps(candidates.size());
-  backend_->overlaps(cur.cloud, targets, T_target_source, overlaps);
+  backend_->overlaps(cur.factor_source, targets, T_target_source, overlaps);
   int added = 0;
   for (size_t k = 0; k < candidates.size(); ++k) {
     const int j = candidates[k];
@@ -205,7 +210,7 @@ int Mapper::connect_overlapping(int id, int first, std::vector<char>& connected)
       graph_.add(std::make_shared<RelativePoseFactor>(j, id, r.T_target_source, r.H, RobustKernel::huber(10.0)));
       factor_info_.push_back({"se3", id, j, ov, 0.0});
     } else {
-      graph_.add(std::make_shared<MatchingCostFactor>(id, j, cur.cloud, submaps_[j].voxels));
+      graph_.add(std::make_shared<MatchingCostFactor>(id, j, cur.factor_source, submaps_[j].voxels));
       factor_info_.push_back({"matching_cost", id, j, ov, 0.0});
     }
     connected[j] = 1;

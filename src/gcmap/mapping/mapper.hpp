@@ -17,6 +17,7 @@ struct Submap {
   std::vector<Eigen::Isometry3d> T_submap_keyframe;  // fixed after the local optimization
   Eigen::Isometry3d T_odom = Eigen::Isometry3d::Identity();  // odometry pose of the submap origin
   std::shared_ptr<const PointCloud> cloud;        // merged, in the submap frame
+  std::shared_ptr<const PointCloud> factor_source;  // subsample of cloud: source of its factors
   std::shared_ptr<const GaussianVoxelMap> voxels; // at global.voxel_resolution
 };
 

@@ -1,0 +1,49 @@
+#pragma once
+// Benchmark graphs over the five real kitti07 submap clouds (../shared/data/kitti07_submaps).
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "gcmap/graph/matching_graph.hpp"
+#include "gcmap/io/point_cloud_io.hpp"
+#include "gcmap/io/trajectory_io.hpp"
+
+namespace gcmap::bench {
+
+struct Kitti07 {
+  Trajectory reference;
+  std::vector<ScanNode> nodes;
+  size_t points_per_cloud = 0;  // mean
+
+  // Empty when the data folder is absent.
+  static std::optional<Kitti07> load() {
+    const std::string dir = std::string(GCMAP_SHARED_DATA) + "/kitti07_submaps";
+    if (!std::filesystem::exists(dir)) return std::nullopt;
+    Kitti07 k;
+    k.reference = read_trajectory(dir + "/graph.txt");
+    size_t total = 0;
+    for (int c = 0; c < 5; ++c) {
+      k.nodes.push_back(make_scan_node(read_point_cloud(dir + "/00000" + std::to_string(c) + "/points.bin", BinFields::xyz), 1.0));
+      total += k.nodes.back().cloud->size();
+    }
+    k.points_per_cloud = total / 5;
+    return k;
+  }
+
+  // num_factors matching-cost factors: variables cycle through the 5 clouds at their reference
+  // poses and each factor joins two variables holding different clouds, so every factor is a real
+  // overlapping pair.
+  void make_graph(int num_factors, FactorGraph& graph, Values& values) const {
+    const int num_vars = std::max(5, num_factors / 5);
+    for (int v = 0; v < num_vars; ++v) values[v] = reference.poses[v % 5];
+    for (int f = 0; graph.factors.size() < static_cast<size_t>(num_factors); ++f) {
+      const int u = f % num_vars, step = 1 + (f / num_vars) % 4;
+      const int v = (u + step) % num_vars;
+      if (u % 5 == v % 5) continue;
+      graph.add(std::make_shared<MatchingCostFactor>(u, v, nodes[u % 5].cloud, nodes[v % 5].voxels));
+    }
+  }
+};
+
+}  // namespace gcmap::bench
