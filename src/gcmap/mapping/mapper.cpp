@@ -171,6 +171,9 @@ void Mapper::insert_submap(Submap s) {
   stats_.global_factors.add(w.lap_ms());
   const bool loop = config_.loop.enabled && config_.global.mode == "full" && close_explicit_loop(id);
   w.lap_ms();  // loop time is counted in its own statistics
+  // A verified loop says the estimate was off where it closes, so the revisit factors made at that
+  // estimate may sit in a wrong minimum: the loop first steers without them.
+  if (loop) lm_.optimize(without_revisit_factors(), values_, {0});
   lm_.optimize(graph_, values_, {0});
   double opt_ms = w.lap_ms();
   if (loop) {
@@ -182,6 +185,25 @@ void Mapper::insert_submap(Submap s) {
   }
   stats_.global_optimization.add(opt_ms);
   stats_.per_submap.push_back({id + 1, static_cast<int>(graph_.factors.size()), opt_ms});
+}
+
+FactorGraph Mapper::without_revisit_factors() const {
+  const auto revisit = [&](const FactorInfo& f) {
+    return f.type != "loop" && f.type != "odometry" && std::abs(f.source - f.target) > config_.loop.exclude_recent;
+  };
+  FactorGraph steer;
+  std::vector<char> constrained(submaps_.size(), 0);
+  for (size_t f = 0; f < graph_.factors.size(); ++f) {
+    if (revisit(factor_info_[f])) continue;
+    steer.add(graph_.factors[f]);
+    constrained[factor_info_[f].source] = constrained[factor_info_[f].target] = 1;
+  }
+  // A submap held only by revisit factors keeps them (LM needs every pose constrained).
+  for (size_t f = 0; f < graph_.factors.size(); ++f) {
+    const FactorInfo& info = factor_info_[f];
+    if (revisit(info) && (!constrained[info.source] || !constrained[info.target])) steer.add(graph_.factors[f]);
+  }
+  return steer;
 }
 
 int Mapper::connect_overlapping(int id, int first, std::vector<char>& connected) {

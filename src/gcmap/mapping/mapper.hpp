@@ -98,6 +98,9 @@ class Mapper {
   // Matching-cost (or se3) factors from submap id to every past submap in [first, id) not in
   // `connected` whose overlap reaches th_min_G; returns how many were added.
   int connect_overlapping(int id, int first, std::vector<char>& connected);
+  // The global graph without matching-cost factors between submaps more than loop.exclude_recent
+  // apart (kept where a submap has nothing else).
+  FactorGraph without_revisit_factors() const;
   // Searches the places of older submaps for the keyframes of submap id, verifies the best
   // candidate and adds a loop factor; true when one was added.
   bool close_explicit_loop(int id);
