@@ -216,6 +216,8 @@ MapRunResult run_mapping(const MapRunOptions& o) {
   stats["skipped_scans"] = skipped;
   stats["seconds"] = seconds;
   stats["frames_per_second"] = files.size() / seconds;
+  const auto* gpu = dynamic_cast<const cuda::CudaBackend*>(backend.get());
+  stats["device"] = gpu ? "cuda: " + gpu->device_name() : std::string("cpu");
   Json timing = Json::object();
   timing["preprocess"] = timing_json(t_pre);
   timing["odometry"] = timing_json(t_odom);

@@ -243,7 +243,8 @@ int device_count(const char** why) {
   int n = 0;
   const cudaError_t e = cudaGetDeviceCount(&n);
   if (e != cudaSuccess) {
-    if (why) *why = cudaGetErrorString(e);
+    // Without a driver the runtime reports "insufficient driver": say what that usually means.
+    if (why) *why = e == cudaErrorInsufficientDriver ? "no CUDA driver, or one older than CUDA 13" : cudaGetErrorString(e);
     cudaGetLastError();  // clear the sticky error for a later try
     return 0;
   }
