@@ -139,6 +139,18 @@ TEST(Mapping, ConfigRoundTripsThroughYaml) {
   EXPECT_EQ(d.local.th_min, 0.10);
   EXPECT_EQ(d.local.max_keyframes, 15);
   EXPECT_EQ(d.global.th_min, 0.025);
+  // Impossible source subsamples are refused, naming the key.
+  MappingConfig bad;
+  bad.global.factor_source_points = 10;
+  EXPECT_THROW(bad.validate(), Error);
+  bad = MappingConfig{};
+  bad.local.factor_source_points = -1;
+  try {
+    bad.validate();
+    ADD_FAILURE() << "local.factor_source_points -1 accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("local.factor_source_points"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Mapping, Kitti00OdometryAgreesWithScanToScanGicp) {

@@ -33,6 +33,7 @@ void visit(Config& c, Visitor&& v) {
   v("local", "voxel_resolution", c.local.voxel_resolution);
   v("local", "submap_downsample", c.local.submap_downsample);
   v("local", "max_submap_points", c.local.max_submap_points);
+  v("local", "factor_source_points", c.local.factor_source_points);
   v("local", "max_iterations", c.local.max_iterations);
   v("local", "relative_error_tol", c.local.relative_error_tol);
   v("global", "th_min", c.global.th_min);
@@ -141,6 +142,7 @@ void MappingConfig::validate() const {
   need(local.voxel_resolution > 0 && local.submap_downsample > 0, "local resolutions must be positive");
   need(local.max_submap_points >= 1000, "local.max_submap_points must be >= 1000");
   need(global.factor_source_points >= 1000, "global.factor_source_points must be >= 1000");
+  need(local.factor_source_points == 0 || local.factor_source_points >= 1000, "local.factor_source_points must be 0 or >= 1000");
   need(global.th_min >= 0 && global.th_min <= 1, "global.th_min must be in [0, 1]");
   need(global.voxel_resolution > 0, "global.voxel_resolution must be positive");
   need(global.mode == "full" || global.mode == "sliding-window", "global.mode must be full or sliding-window");

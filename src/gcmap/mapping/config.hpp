@@ -31,6 +31,7 @@ struct LocalMappingConfig {
   double voxel_resolution = 0.5;  // keyframe voxel maps for the in-submap factors
   double submap_downsample = 0.25;
   int max_submap_points = 60000;
+  int factor_source_points = 0;  // > 0: keyframe points used as the source of in-submap factors (0: all)
   int max_iterations = 20;
   double relative_error_tol = 1e-4;  // LM stops once a step gains less than this fraction
 };

@@ -105,8 +105,12 @@ void Mapper::close_submap() {
     // Fully connected: every keyframe pair gets a VGICP factor (source later, target earlier).
     Stopwatch w;
     FactorGraph g;
-    for (int b = 1; b < n; ++b)
-      for (int a = 0; a < b; ++a) g.add(std::make_shared<MatchingCostFactor>(b, a, open_[b].cloud, open_[a].voxels));
+    for (int b = 1; b < n; ++b) {
+      auto source = config_.local.factor_source_points > 0
+                        ? std::make_shared<const PointCloud>(evenly_subsampled(*open_[b].cloud, config_.local.factor_source_points))
+                        : open_[b].cloud;
+      for (int a = 0; a < b; ++a) g.add(std::make_shared<MatchingCostFactor>(b, a, source, open_[a].voxels));
+    }
     stats_.local_factors.add(w.lap_ms());
     LevenbergMarquardt lm(lm_config(config_.local.max_iterations, config_.local.relative_error_tol), backend_);
     lm.optimize(g, local, {0});
