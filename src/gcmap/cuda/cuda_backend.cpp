@@ -231,10 +231,7 @@ DeviceMemory CudaBackend::memory() const {
     m.num_slots += v.device.mask + 1;
     m.map_bytes += v.device.num_voxels * 10 * sizeof(float) + (v.device.mask + 1) * sizeof(VoxelSlot);
   }
-  const device::Batch& b = impl_->batch;
-  const size_t blocks = (b.num_points() + 255) / 256 + b.num_pairs();
-  m.batch_bytes = b.num_points() * sizeof(int32_t) + blocks * (2 * sizeof(uint32_t) + device::kSums * sizeof(float)) +
-                  b.num_pairs() * (12 * sizeof(float) + device::kSums * sizeof(double) + 64);
+  m.batch_bytes = impl_->batch.device_bytes();
   return m;
 }
 

@@ -55,6 +55,7 @@ class Batch {
   void set_pairs(const std::vector<Cloud>& sources, const std::vector<VoxelMap>& targets);
   size_t num_pairs() const { return num_pairs_; }
   size_t num_points() const { return num_points_; }
+  size_t device_bytes() const { return device_bytes_; }
 
   // T: per pair T_target_source as a row-major 3x4 float matrix. One upload, two launches, one
   // download. Keeps each point's voxel for trial_errors.
@@ -64,7 +65,7 @@ class Batch {
 
  private:
   void release();
-  size_t num_pairs_ = 0, num_points_ = 0, num_blocks_ = 0;
+  size_t num_pairs_ = 0, num_points_ = 0, num_blocks_ = 0, device_bytes_ = 0;
   void* pairs_ = nullptr;        // device PairView[num_pairs]
   int32_t* block_pair_ = nullptr;
   uint32_t* block_begin_ = nullptr;
