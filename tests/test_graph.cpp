@@ -112,6 +112,32 @@ TEST(LevenbergMarquardt, ShiftedTukeyRejectsOutlierConstraint) {
   EXPECT_GT(test::translation_error(plain.initial[2], plain.truth[2]), 0.5);  // the outlier drags it
 }
 
+TEST(LevenbergMarquardt, StopsOnceTheModelPredictsTheGainAndLosesAtMostTheTolerance) {
+  // Inconsistent measurements: the optimum keeps a positive error for the tolerance to scale with.
+  PoseGraphProblem p = square_loop(RobustKernel::none(), false);
+  const Eigen::Isometry3d off = p.truth[1].inverse() * p.truth[3] * se3_exp((Vector6d() << 0.02, 0, -0.01, 0.05, 0.1, 0).finished());
+  p.graph.add(std::make_shared<RelativePoseFactor>(1, 3, off, Matrix6d::Identity() * 100.0));
+  LMConfig loose_config, tight_config;
+  loose_config.relative_error_tol = 1e-3;
+  tight_config.relative_error_tol = tight_config.step_tol = 0.0;
+  tight_config.max_iterations = 30;
+  Values loose = p.initial, tight = p.initial;
+  LevenbergMarquardt lm_loose(loose_config), lm_tight(tight_config);
+  const LMResult rl = lm_loose.optimize(p.graph, loose, {0});
+  const LMResult rt = lm_tight.optimize(p.graph, tight, {0});
+  ASSERT_TRUE(rl.converged);
+  EXPECT_LT(rl.iterations, rt.iterations);
+  EXPECT_GT(rt.final_error, 1e-3);
+  EXPECT_LE(rl.final_error, rt.final_error * (1.0 + 2e-3));
+  // The last iteration does not re-linearize; the error it reports is still the cost at the result.
+  double cost = 0.0;
+  for (const auto& f : p.graph.factors) {
+    const Eigen::Isometry3d* poses[2] = {&loose.at(f->keys()[0]), &loose.at(f->keys()[1])};
+    cost += f->trial_error(poses);
+  }
+  EXPECT_NEAR(rl.final_error, cost, 1e-12 * cost);
+}
+
 TEST(LevenbergMarquardt, SingularSystemIsReported) {
   PoseGraphProblem p = square_loop(RobustKernel::none(), false);
   p.initial[7] = Eigen::Isometry3d::Identity();  // a pose no factor touches

@@ -234,10 +234,12 @@ MapRunResult run_mapping(const MapRunOptions& o) {
     j["submaps"] = p.num_submaps;
     j["factors"] = p.num_factors;
     j["global_optimization_ms"] = p.global_optimization_ms;
+    j["global_iterations"] = p.global_iterations;
     per.push_back(j);
   }
   stats["per_submap"] = per;
   stats["final_optimization_ms"] = ms.final_optimization_ms;
+  stats["final_iterations"] = ms.final_iterations;
   write_file_atomic((fs::path(o.output) / "stats.json").string(), [&](std::ostream& s) { s << stats.dump() << "\n"; });
   write_file_atomic((fs::path(o.output) / "config.yaml").string(), [&](std::ostream& s) { s << cfg.to_yaml(); });
 

@@ -151,7 +151,7 @@ LMResult LevenbergMarquardt::optimize(const FactorGraph& graph, Values& values, 
 
     bool accepted = false;
     Values trial_values;
-    double trial_error = 0.0;
+    double trial_error = 0.0, predicted_decrease = 0.0, step_lambda = 0.0;
     Eigen::VectorXd delta;
     stats.solve_ms = 0.0;
     while (lambda_ <= config_.max_lambda) {
@@ -187,6 +187,8 @@ LMResult LevenbergMarquardt::optimize(const FactorGraph& graph, Values& values, 
       const double predicted = -(2.0 * b.dot(delta) + quad(delta));
       if (std::isfinite(trial_error) && trial_error < error) {
         const double rho = predicted > 0 ? (error - trial_error) / predicted : 0.5;
+        predicted_decrease = predicted;
+        step_lambda = lambda_;
         lambda_ = std::max(lambda_ * std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3)), 1e-12);
         accepted = true;
         break;
@@ -207,16 +209,21 @@ LMResult LevenbergMarquardt::optimize(const FactorGraph& graph, Values& values, 
     }
     const double decrease = error - trial_error;
     values = std::move(trial_values);
-    error = linearize(values);
+    // Converged also when a nearly undamped step gained what the quadratic model predicted to within
+    // the tolerance: the next step would gain about that model error, so it is not worth its
+    // linearization (mostly the confirming second iteration of a warm-started insertion).
+    const double tol = config_.relative_error_tol * std::max(trial_error, 1e-12);
+    result.converged = decrease < tol || delta.lpNorm<Eigen::Infinity>() < config_.step_tol ||
+                       (step_lambda <= 1e-3 && std::abs(decrease - predicted_decrease) < tol);
+    // A linearization nobody will use is the most expensive thing LM could do here: the last
+    // iteration reports its trial error (same association) instead.
+    const bool last = result.converged || iter == config_.max_iterations;
+    error = last ? trial_error : linearize(values);
     stats.error = error;
     stats.linearize_ms = result.linearize_ms - lin_ms_before;
     result.history.push_back(stats);
     result.iterations = iter;
-    if (decrease < config_.relative_error_tol * std::max(trial_error, 1e-12) ||
-        delta.lpNorm<Eigen::Infinity>() < config_.step_tol) {
-      result.converged = true;
-      break;
-    }
+    if (last) break;
   }
   result.final_error = error;
   result.total_ms = total.ms();

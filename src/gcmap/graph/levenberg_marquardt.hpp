@@ -19,7 +19,7 @@ struct LMConfig {
 
 struct LMIteration {
   int iteration = 0;
-  double error = 0.0;  // after the accepted step, at its own re-linearization
+  double error = 0.0;  // after the accepted step, at its re-linearization (last iteration: its trial error)
   double lambda = 0.0;
   int trials = 0;
   double linearize_ms = 0.0;

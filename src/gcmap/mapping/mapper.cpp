@@ -156,7 +156,7 @@ void Mapper::insert_submap(Submap s) {
   submaps_.push_back(std::move(s));
   const Submap& cur = submaps_.back();
   if (id == 0) {
-    stats_.per_submap.push_back({1, 0, 0.0});
+    stats_.per_submap.push_back({1, 0, 0.0, 0});
     return;
   }
 
@@ -177,18 +177,19 @@ void Mapper::insert_submap(Submap s) {
   w.lap_ms();  // loop time is counted in its own statistics
   // A verified loop says the estimate was off where it closes, so the revisit factors made at that
   // estimate may sit in a wrong minimum: the loop first steers without them.
-  if (loop) lm_.optimize(without_revisit_factors(), values_, {0});
-  lm_.optimize(graph_, values_, {0});
+  int iterations = 0;
+  if (loop) iterations += lm_.optimize(without_revisit_factors(), values_, {0}).iterations;
+  iterations += lm_.optimize(graph_, values_, {0}).iterations;
   double opt_ms = w.lap_ms();
   if (loop) {
     // The implicit loop closure: the corrected estimate now overlaps submaps it missed before.
     const int added = connect_overlapping(id, first, connected);
     stats_.global_factors.add(w.lap_ms());
-    if (added) lm_.optimize(graph_, values_, {0});
+    if (added) iterations += lm_.optimize(graph_, values_, {0}).iterations;
     opt_ms += w.lap_ms();
   }
   stats_.global_optimization.add(opt_ms);
-  stats_.per_submap.push_back({id + 1, static_cast<int>(graph_.factors.size()), opt_ms});
+  stats_.per_submap.push_back({id + 1, static_cast<int>(graph_.factors.size()), opt_ms, iterations});
 }
 
 FactorGraph Mapper::without_revisit_factors() const {
@@ -285,7 +286,7 @@ void Mapper::finish() {
   if (graph_.factors.empty()) return;
   LevenbergMarquardt final_lm(lm_config(config_.global.final_iterations), backend_);
   Stopwatch w;
-  final_lm.optimize(graph_, values_, {0});
+  stats_.final_iterations = final_lm.optimize(graph_, values_, {0}).iterations;
   stats_.final_optimization_ms = w.ms();
   stats_.global_optimization.add(stats_.final_optimization_ms);
 }

@@ -52,9 +52,11 @@ struct MapperStats {
   struct PerSubmap {
     int num_submaps, num_factors;
     double global_optimization_ms;
+    int global_iterations;  // LM iterations of this insertion, over all its optimize calls
   };
   std::vector<PerSubmap> per_submap;
   double final_optimization_ms = 0.0;  // also one sample of global_optimization
+  int final_iterations = 0;
 };
 
 class Mapper {
