@@ -151,6 +151,46 @@ TEST(Vgicp, BinaryBlocksAgreeWithUnaryAndGauge) {
   EXPECT_LT((r.H - at_r.H_ii).norm(), 1e-9 * r.H.norm());
 }
 
+TEST(Vgicp, SingularFusedCovariancesDropOutOfEverySum) {
+  // The kernel runs several points at a time: a point whose fused covariance is singular (here
+  // both covariances zero) must add nothing and not count, wherever it falls in a batch, and the
+  // rest must match a plain double-precision sum. 1003 points: not a whole number of batches.
+  std::mt19937_64 rng(31);
+  std::uniform_real_distribution<float> u(-4.f, 4.f);
+  PointCloud target, source;
+  for (int k = 0; k < 3000; ++k) target.points.emplace_back(u(rng), u(rng), u(rng));
+  for (int k = 0; k < 1003; ++k) source.points.emplace_back(u(rng), u(rng), u(rng));
+  estimate_covariances(target);
+  estimate_covariances(source);
+  target.covs.assign(target.size(), Eigen::Matrix3f::Zero());
+  for (size_t k = 0; k < source.size(); k += 3) source.covs[k].setZero();
+  GaussianVoxelMap voxels(1.0);
+  voxels.insert(target);
+  voxels.finalize();
+  const Eigen::Isometry3d T = se3_exp((Vector6d() << 0.1, -0.05, 0.2, 0.3, -0.2, 0.1).finished());
+
+  double error = 0.0;
+  size_t inliers = 0;
+  for (size_t k = 0; k < source.size(); ++k) {
+    const Eigen::Vector3d q = T * source.points[k].cast<double>();
+    const int v = voxels.lookup(PointTransform(T) * source.points[k]);
+    if (v < 0 || k % 3 == 0) continue;
+    const Eigen::Matrix3d S = T.linear() * source.covs[k].cast<double>() * T.linear().transpose();
+    const Eigen::Vector3d e = voxels.mean(v).cast<double>() - q;
+    error += e.dot(S.inverse() * e);
+    ++inliers;
+  }
+  ASSERT_GT(inliers, 500u);
+  const VgicpLinearization lin = linearize_vgicp(source, voxels, T);
+  EXPECT_EQ(lin.num_inliers, inliers);
+  EXPECT_NEAR(lin.error, error, 1e-4 * error);
+  const VgicpError eval = evaluate_vgicp(source, voxels, T), frozen = evaluate_vgicp(source, voxels, T, T);
+  EXPECT_EQ(eval.num_inliers, inliers);
+  EXPECT_EQ(frozen.num_inliers, inliers);
+  EXPECT_NEAR(eval.error, error, 1e-4 * error);
+  EXPECT_EQ(frozen.error, eval.error);
+}
+
 TEST(Registration, RecoversSyntheticTransform) {
   std::mt19937_64 rng(8);
   for (int trial = 0; trial < 3; ++trial) {

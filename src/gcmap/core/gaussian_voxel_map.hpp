@@ -22,11 +22,17 @@ struct PointTransform {
   }
 };
 
+// floor() for values in int range: truncate, then step down for negative non-integers. Without
+// SSE4.1 std::floor is a library call or a long emulation, and this is on every voxel lookup.
+inline int floor_to_int(float x) {
+  const int i = static_cast<int>(x);
+  return i - (x < static_cast<float>(i));
+}
+
 // Integer voxel coordinate of a point at a given inverse resolution.
 inline Eigen::Vector3i voxel_coord(const Eigen::Vector3f& p, float inv_resolution) {
-  return Eigen::Vector3i(static_cast<int>(std::floor(p.x() * inv_resolution)),
-                         static_cast<int>(std::floor(p.y() * inv_resolution)),
-                         static_cast<int>(std::floor(p.z() * inv_resolution)));
+  return Eigen::Vector3i(floor_to_int(p.x() * inv_resolution), floor_to_int(p.y() * inv_resolution),
+                         floor_to_int(p.z() * inv_resolution));
 }
 
 inline uint32_t hash_voxel(const Eigen::Vector3i& c) {
