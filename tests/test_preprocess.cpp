@@ -1,6 +1,10 @@
 #include <Eigen/Eigenvalues>
 #include <tbb/global_control.h>
 
+#include <array>
+#include <cmath>
+#include <map>
+
 #include "gcmap/core/gaussian_voxel_map.hpp"
 #include "gcmap/core/preprocess.hpp"
 #include "gcmap/sim/synthetic.hpp"
@@ -33,6 +37,21 @@ TEST(Downsample, AveragesEachVoxelAndIsDeterministic) {
   ASSERT_EQ(a.size(), b.size());
   for (size_t i = 0; i < a.size(); ++i) ASSERT_EQ(a.points[i], b.points[i]);
   EXPECT_LT(a.size(), big.size());
+
+  // Against a plain ordered map of voxels: same voxels, same lexicographic order, same means.
+  std::map<std::array<int64_t, 3>, std::pair<Eigen::Vector3d, int>> reference;
+  for (const Eigen::Vector3f& p : big.points) {
+    const std::array<int64_t, 3> key{static_cast<int64_t>(std::floor(p.x() / 0.25)), static_cast<int64_t>(std::floor(p.y() / 0.25)),
+                                     static_cast<int64_t>(std::floor(p.z() / 0.25))};
+    auto& [sum, count] = reference.try_emplace(key, Eigen::Vector3d::Zero(), 0).first->second;
+    sum += p.cast<double>();
+    ++count;
+  }
+  ASSERT_EQ(a.size(), reference.size());
+  size_t i = 0;
+  for (const auto& [key, acc] : reference) {
+    ASSERT_LT((a.points[i++].cast<double>() - acc.first / acc.second).norm(), 1e-5) << i;
+  }
 }
 
 TEST(Downsample, ExactFarFromOrigin) {

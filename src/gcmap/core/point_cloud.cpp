@@ -12,7 +12,28 @@ void filter_channel(std::vector<T>& v, const std::vector<char>& keep) {
   }
   v.resize(out);
 }
+
+template <typename T>
+void select_channel(const std::vector<T>& in, const std::vector<char>& keep, size_t count, std::vector<T>& out) {
+  if (in.empty()) return;
+  out.reserve(count);
+  for (size_t i = 0; i < in.size(); ++i) {
+    if (keep[i]) out.push_back(in[i]);
+  }
+}
 }  // namespace
+
+PointCloud PointCloud::selected(const std::vector<char>& keep) const {
+  size_t count = 0;
+  for (size_t i = 0; i < size(); ++i) count += keep[i] != 0;
+  PointCloud out;
+  select_channel(points, keep, count, out.points);
+  select_channel(covs, keep, count, out.covs);
+  select_channel(intensities, keep, count, out.intensities);
+  select_channel(times, keep, count, out.times);
+  select_channel(labels, keep, count, out.labels);
+  return out;
+}
 
 void PointCloud::filter(const std::vector<char>& keep) {
   filter_channel(points, keep);

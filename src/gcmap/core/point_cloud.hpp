@@ -24,6 +24,8 @@ struct PointCloud {
 
   // Keeps the points whose flag is true, in order, for every channel present.
   void filter(const std::vector<char>& keep);
+  // The same as a copy, without copying what is dropped.
+  PointCloud selected(const std::vector<char>& keep) const;
 };
 
 // Returns the cloud with every point (and covariance) mapped by T.

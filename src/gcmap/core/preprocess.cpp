@@ -7,8 +7,9 @@
 
 #include <Eigen/Eigenvalues>
 #include <array>
+#include <bit>
 #include <cmath>
-#include <limits>
+#include <utility>
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/kdtree.hpp"
@@ -28,6 +29,22 @@ struct WideKeyedIndex {
   uint32_t index;
   bool operator<(const WideKeyedIndex& o) const { return key < o.key || (key == o.key && index < o.index); }
 };
+
+// Stable LSD radix sort on the low key_bits bits of the keys, 11 bits per pass.
+void radix_sort(std::vector<KeyedIndex>& keyed, int key_bits) {
+  constexpr int kDigit = 11;
+  constexpr size_t kBuckets = size_t{1} << kDigit;
+  std::vector<KeyedIndex> scratch(keyed.size());
+  std::vector<uint32_t> offsets(kBuckets);
+  for (int shift = 0; shift < key_bits; shift += kDigit) {
+    std::fill(offsets.begin(), offsets.end(), 0u);
+    for (const KeyedIndex& k : keyed) ++offsets[(k.key >> shift) & (kBuckets - 1)];
+    uint32_t sum = 0;
+    for (uint32_t& o : offsets) sum += std::exchange(o, sum);
+    for (const KeyedIndex& k : keyed) scratch[offsets[(k.key >> shift) & (kBuckets - 1)]++] = k;
+    keyed.swap(scratch);
+  }
+}
 
 template <typename Keyed>
 PointCloud average_runs(const PointCloud& cloud, const std::vector<Keyed>& sorted) {
@@ -83,68 +100,65 @@ PointCloud voxel_downsample(const PointCloud& cloud, double resolution) {
   if (n == 0) return cloud;
   const double inv = 1.0 / resolution;
 
-  std::vector<std::array<int64_t, 3>> coords(n);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 4096), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t i = r.begin(); i != r.end(); ++i) {
-      for (int k = 0; k < 3; ++k) coords[i][k] = static_cast<int64_t>(std::floor(cloud.points[i][k] * inv));
-    }
-  });
-  using Box = std::array<int64_t, 6>;
-  const Box init{std::numeric_limits<int64_t>::max(), std::numeric_limits<int64_t>::max(),
-                 std::numeric_limits<int64_t>::max(), std::numeric_limits<int64_t>::min(),
-                 std::numeric_limits<int64_t>::min(), std::numeric_limits<int64_t>::min()};
-  const Box box = tbb::parallel_reduce(
-      tbb::blocked_range<size_t>(0, n, 4096), init,
-      [&](const tbb::blocked_range<size_t>& r, Box b) {
+  // floor without a library call: this runs on every raw point.
+  const auto coord = [inv](float v) {
+    const double x = v * inv;
+    const int64_t t = static_cast<int64_t>(x);
+    return t - (x < static_cast<double>(t));
+  };
+  // The voxel bounding box from the points' extremes (floor is monotonic).
+  using Extremes = std::pair<Eigen::Vector3f, Eigen::Vector3f>;
+  const Extremes ext = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, n, 4096), Extremes{cloud.points[0], cloud.points[0]},
+      [&](const tbb::blocked_range<size_t>& r, Extremes e) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
-          for (int k = 0; k < 3; ++k) {
-            b[k] = std::min(b[k], coords[i][k]);
-            b[k + 3] = std::max(b[k + 3], coords[i][k]);
-          }
+          e.first = e.first.cwiseMin(cloud.points[i]);
+          e.second = e.second.cwiseMax(cloud.points[i]);
         }
-        return b;
+        return e;
       },
-      [](Box a, const Box& b) {
-        for (int k = 0; k < 3; ++k) {
-          a[k] = std::min(a[k], b[k]);
-          a[k + 3] = std::max(a[k + 3], b[k + 3]);
-        }
-        return a;
-      });
+      [](const Extremes& a, const Extremes& b) { return Extremes{a.first.cwiseMin(b.first), a.second.cwiseMax(b.second)}; });
+  std::array<int64_t, 6> box;
+  for (int k = 0; k < 3; ++k) {
+    box[k] = coord(ext.first[k]);
+    box[k + 3] = coord(ext.second[k]);
+  }
 
-  constexpr int64_t kBits = 21;
-  const bool fits = box[3] - box[0] < (int64_t{1} << kBits) && box[4] - box[1] < (int64_t{1} << kBits) &&
-                    box[5] - box[2] < (int64_t{1} << kBits);
-  if (fits) {
-    // Common case: pack offsets into one 63-bit key, which sorts much faster than a tuple.
+  // Common case: the offsets pack into one key of at most 63 bits, sorted by a stable LSD radix sort
+  // (ties keep index order, as the comparison sort below does).
+  int bits[3];
+  for (int k = 0; k < 3; ++k) bits[k] = std::bit_width(static_cast<uint64_t>(box[k + 3] - box[k]));
+  if (bits[0] + bits[1] + bits[2] <= 63) {
     std::vector<KeyedIndex> keyed(n);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 4096), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i != r.end(); ++i) {
-        const uint64_t x = static_cast<uint64_t>(coords[i][0] - box[0]);
-        const uint64_t y = static_cast<uint64_t>(coords[i][1] - box[1]);
-        const uint64_t z = static_cast<uint64_t>(coords[i][2] - box[2]);
-        keyed[i] = {(x << (2 * kBits)) | (y << kBits) | z, static_cast<uint32_t>(i)};
+        const Eigen::Vector3f& p = cloud.points[i];
+        const uint64_t x = static_cast<uint64_t>(coord(p.x()) - box[0]);
+        const uint64_t y = static_cast<uint64_t>(coord(p.y()) - box[1]);
+        const uint64_t z = static_cast<uint64_t>(coord(p.z()) - box[2]);
+        keyed[i] = {(x << (bits[1] + bits[2])) | (y << bits[2]) | z, static_cast<uint32_t>(i)};
       }
     });
-    tbb::parallel_sort(keyed.begin(), keyed.end());
+    radix_sort(keyed, bits[0] + bits[1] + bits[2]);
     return average_runs(cloud, keyed);
   }
   std::vector<WideKeyedIndex> keyed(n);
-  for (size_t i = 0; i < n; ++i) keyed[i] = {coords[i], static_cast<uint32_t>(i)};
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3f& p = cloud.points[i];
+    keyed[i] = {{coord(p.x()), coord(p.y()), coord(p.z())}, static_cast<uint32_t>(i)};
+  }
   tbb::parallel_sort(keyed.begin(), keyed.end());
   return average_runs(cloud, keyed);
 }
 
 PointCloud range_filter(const PointCloud& cloud, double min_range, double max_range) {
-  PointCloud out = cloud;
   std::vector<char> keep(cloud.size());
   const double min2 = min_range * min_range, max2 = max_range * max_range;
   for (size_t i = 0; i < cloud.size(); ++i) {
     const double d2 = cloud.points[i].cast<double>().squaredNorm();
     keep[i] = d2 >= min2 && d2 <= max2;
   }
-  out.filter(keep);
-  return out;
+  return cloud.selected(keep);
 }
 
 size_t remove_non_finite(PointCloud& cloud) {
