@@ -226,7 +226,9 @@ TEST_F(Kitti07, PerturbedPosesComeBack) {
   for (int k = 0; k < 5; ++k) start[k] = reference.poses[k];
   const Values optimum = solve(start);
   // Our optimum vs the reference implementation's: measured up to 5.9 cm / 0.15 deg at cloud 4
-  // (27 m from the fixed cloud 0), whatever the voxel size; see the issue notes.
+  // (27 m from the fixed cloud 0), whatever the voxel size. The clouds do not pin graph.txt down
+  // closer: pairwise, VGICP and kNN GICP agree on clouds 3-4 within 4 mm / 0.01 deg and both sit
+  // 2.8 cm / 0.13 deg from it (and the reference's own test allows 15 cm / 0.86 deg).
   for (int k = 0; k < 5; ++k) {
     EXPECT_LT(test::translation_error(optimum.at(k), reference.poses[k]), 0.07) << k;
     EXPECT_LT(test::rotation_error_deg(optimum.at(k), reference.poses[k]), 0.2) << k;
