@@ -5,13 +5,11 @@
 //
 // Two stages per batch of points: a scalar pass transforms, associates and gathers the associated
 // points' Gaussians into structure-of-arrays form; the arithmetic then runs kLanes points at a time
-// on GCC vector types (SSE/AVX/NEON, whatever the target has), with symmetric 3x3 algebra written
+// on GCC vector types (SSE, NEON, whatever the target has), with symmetric 3x3 algebra written
 // out. Sums are float within a chunk of <= kGrain points and double across chunks, in a fixed
 // order: the same result for any thread count.
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
-
-#include <cmath>
 
 #include "gcmap/core/gaussian_voxel_map.hpp"
 #include "gcmap/core/point_cloud.hpp"
