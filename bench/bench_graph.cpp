@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "gcmap/core/memory.hpp"
 #include "gcmap/core/timer.hpp"
 #include "gcmap/graph/levenberg_marquardt.hpp"
 #include "kitti07_graph.hpp"
@@ -14,6 +15,7 @@
 using namespace gcmap;
 
 int main() {
+  keep_large_buffers_in_heap();  // as gcmap does
   const std::optional<bench::Kitti07> data = bench::Kitti07::load();
   if (!data) {
     std::printf("skipped: ../shared/data/kitti07_submaps is absent\n");

@@ -6,6 +6,7 @@
 #include <filesystem>
 
 #include "gcmap/core/preprocess.hpp"
+#include "gcmap/core/memory.hpp"
 #include "gcmap/core/timer.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/registration/registration.hpp"
@@ -14,6 +15,7 @@
 using namespace gcmap;
 
 int main() {
+  keep_large_buffers_in_heap();  // as gcmap does
   const std::string dir = std::string(GCMAP_SHARED_DATA) + "/kitti00_first16/velodyne";
   if (!std::filesystem::exists(dir)) {
     std::printf("skipped: %s is absent\n", dir.c_str());

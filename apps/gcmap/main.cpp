@@ -2,16 +2,13 @@
 #include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
 
-#ifdef __GLIBC__
-#include <malloc.h>
-#endif
-
 #include <cmath>
 #include <iostream>
 #include <sstream>
 
 #include "commands.hpp"
 #include "gcmap/core/error.hpp"
+#include "gcmap/core/memory.hpp"
 #include "gcmap/core/se3.hpp"
 
 namespace gcmap::cli {
@@ -42,14 +39,7 @@ std::shared_ptr<void> limit_threads(int threads) {
 }  // namespace gcmap::cli
 
 int main(int argc, char** argv) {
-#ifdef __GLIBC__
-  // Scans, voxel keys and linear systems are large buffers allocated per frame. glibc serves them
-  // from mmap and gives them back on free, so every frame page-faults them in again, which on this
-  // kind of VM cost more than the work itself (voxel downsampling of a scan: 10 ms -> 1.9 ms).
-  // Keep them in the heap and let it hold up to 1 GiB of free memory.
-  mallopt(M_MMAP_THRESHOLD, 256 << 20);
-  mallopt(M_TRIM_THRESHOLD, 1 << 30);
-#endif
+  gcmap::keep_large_buffers_in_heap();
   auto logger = spdlog::stderr_color_mt("gcmap");
   logger->set_pattern("[%l] %v");
   spdlog::set_default_logger(logger);
