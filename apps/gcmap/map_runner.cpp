@@ -3,6 +3,7 @@
 #include "commands.hpp"
 
 #include <spdlog/spdlog.h>
+#include <tbb/parallel_pipeline.h>
 #include <unistd.h>
 
 #include <cstdio>
@@ -112,38 +113,69 @@ MapRunResult run_mapping(const MapRunOptions& o) {
   TimingStats t_pre, t_odom;
   Stopwatch total;
   size_t skipped = 0;
-  for (size_t f = 0; f < files.size(); ++f) {
-    Stopwatch w;
-    std::shared_ptr<PointCloud> cloud;
-    try {
-      PointCloud raw = read_point_cloud(files[f]);
-      if (with_labels) remove_dynamic(raw, (labels_dir / (fs::path(files[f]).stem().string() + ".label")).string());
-      if (vertical) kitti_vertical_correction(raw);
-      cloud = std::make_shared<PointCloud>(preprocess_scan(raw, cfg.preprocess));
-    } catch (const Error& e) {
-      spdlog::warn("skipping scan: {}", e.what());
-      ++skipped;
-    }
-    t_pre.add(w.lap_ms());
-    Eigen::Isometry3d T;
-    if (!o.initial_trajectory.empty()) {
-      T = initial.poses[o.start].inverse() * initial.poses[f + o.start];
-      odometry.set_pose(T);
-    } else if (cloud) {
-      T = odometry.track(cloud);
-    } else {
-      T = odometry.predict();
-      odometry.set_pose(T);
-    }
-    t_odom.add(w.lap_ms());
-    odom_poses.push_back(T);
-    mapper.add_frame(static_cast<int>(f), cloud, T);
-    if (progress && (f % 5 == 0 || f + 1 == files.size())) {
-      std::fprintf(stderr, "\rframe %zu/%zu  %.1f frames/s  submaps %zu  factors %zu  last global opt %.0f ms   ", f + 1,
-                   files.size(), (f + 1) / (total.ms() / 1000.0), mapper.submaps().size(), mapper.num_global_factors(),
-                   mapper.stats().global_optimization.samples_ms.empty() ? 0.0 : mapper.stats().global_optimization.samples_ms.back());
-    }
-  }
+  // Scans are read and preprocessed ahead (up to 3 in flight, in parallel with the mapping of
+  // earlier frames), then fed to odometry and mapping in order. The mapping stage alone cannot keep
+  // both cores busy: its LM solve, assembly and voxel-map inserts are serial.
+  struct Scan {
+    size_t frame = 0;
+    std::shared_ptr<PointCloud> cloud;  // null: unreadable
+    std::string error;
+    double preprocess_ms = 0.0;
+  };
+  size_t next = 0;
+  tbb::parallel_pipeline(
+      3,
+      tbb::make_filter<void, Scan>(tbb::filter_mode::serial_in_order,
+                                   [&](tbb::flow_control& fc) {
+                                     Scan scan;
+                                     if (next == files.size()) fc.stop();
+                                     else scan.frame = next++;
+                                     return scan;
+                                   }) &
+          tbb::make_filter<Scan, Scan>(tbb::filter_mode::parallel,
+                                       [&](Scan scan) {
+                                         Stopwatch w;
+                                         try {
+                                           const std::string& file = files[scan.frame];
+                                           PointCloud raw = read_point_cloud(file);
+                                           if (with_labels)
+                                             remove_dynamic(raw, (labels_dir / (fs::path(file).stem().string() + ".label")).string());
+                                           if (vertical) kitti_vertical_correction(raw);
+                                           scan.cloud = std::make_shared<PointCloud>(preprocess_scan(raw, cfg.preprocess));
+                                         } catch (const Error& e) {
+                                           scan.error = e.what();
+                                         }
+                                         scan.preprocess_ms = w.ms();
+                                         return scan;
+                                       }) &
+          tbb::make_filter<Scan, void>(tbb::filter_mode::serial_in_order, [&](const Scan& scan) {
+            const size_t f = scan.frame;
+            const std::shared_ptr<PointCloud>& cloud = scan.cloud;
+            if (!cloud) {
+              spdlog::warn("skipping scan: {}", scan.error);
+              ++skipped;
+            }
+            t_pre.add(scan.preprocess_ms);
+            Stopwatch w;
+            Eigen::Isometry3d T;
+            if (!o.initial_trajectory.empty()) {
+              T = initial.poses[o.start].inverse() * initial.poses[f + o.start];
+              odometry.set_pose(T);
+            } else if (cloud) {
+              T = odometry.track(cloud);
+            } else {
+              T = odometry.predict();
+              odometry.set_pose(T);
+            }
+            t_odom.add(w.lap_ms());
+            odom_poses.push_back(T);
+            mapper.add_frame(static_cast<int>(f), cloud, T);
+            if (progress && (f % 5 == 0 || f + 1 == files.size())) {
+              std::fprintf(stderr, "\rframe %zu/%zu  %.1f frames/s  submaps %zu  factors %zu  last global opt %.0f ms   ", f + 1,
+                           files.size(), (f + 1) / (total.ms() / 1000.0), mapper.submaps().size(), mapper.num_global_factors(),
+                           mapper.stats().global_optimization.samples_ms.empty() ? 0.0 : mapper.stats().global_optimization.samples_ms.back());
+            }
+          }));
   mapper.finish();
   if (progress) std::fprintf(stderr, "\n");
   const double seconds = total.ms() / 1000.0;
