@@ -13,36 +13,6 @@
 
 using namespace gcmap;
 
-namespace {
-
-struct Timing {
-  double linearize_ms = 0.0, trial_ms = 0.0;
-};
-
-Timing time_backend(LinearizationBackend& backend, const FactorGraph& graph, const Values& values, int repeats) {
-  std::vector<Factor*> factors;
-  std::vector<FactorPoses> poses;
-  for (const auto& f : graph.factors) {
-    factors.push_back(f.get());
-    poses.push_back({&values.at(f->keys()[0]), &values.at(f->keys()[1])});
-  }
-  std::vector<FactorLinearization> lin(factors.size());
-  std::vector<double> errors(factors.size());
-  backend.linearize(factors, poses, lin);  // warm-up: uploads, batch layout
-  Timing t;
-  for (int r = 0; r < repeats; ++r) {
-    Stopwatch w;
-    backend.linearize(factors, poses, lin);
-    t.linearize_ms += w.lap_ms();
-    backend.trial_errors(factors, poses, errors);
-    t.trial_ms += w.lap_ms();
-  }
-  t.linearize_ms /= repeats;
-  t.trial_ms /= repeats;
-  return t;
-}
-
-}  // namespace
 
 int main() {
   std::string why;
@@ -66,12 +36,12 @@ int main() {
     Values values;
     data->make_graph(num_factors, graph, values);
     const double evaluations = static_cast<double>(num_factors) * points_per_factor;
-    const Timing g = time_backend(*gpu, graph, values, 20);
-    Timing c;
+    const bench::Timing g = bench::time_backend(*gpu, graph, values, 20);
+    bench::Timing c;
     {
       tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
       CpuBackend cpu;
-      c = time_backend(cpu, graph, values, num_factors >= 1000 ? 1 : 3);
+      c = bench::time_backend(cpu, graph, values, num_factors >= 1000 ? 1 : 3);
     }
     std::printf("factors=%4d  GPU linearize %.2f ms (%.2f G point evaluations/s), trial %.2f ms | CPU 2 threads linearize %.1f ms, trial %.1f ms | speed-up %.0fx\n",
                 num_factors, g.linearize_ms, evaluations / (g.linearize_ms / 1000.0) / 1e9, g.trial_ms, c.linearize_ms, c.trial_ms,

@@ -4,11 +4,9 @@
 // LM ms per iteration split into linearize+evaluate / solve. Not a test.
 #include <tbb/global_control.h>
 
-#include <algorithm>
 #include <cstdio>
 
 #include "gcmap/core/memory.hpp"
-#include "gcmap/core/timer.hpp"
 #include "gcmap/graph/levenberg_marquardt.hpp"
 #include "kitti07_graph.hpp"
 
@@ -26,26 +24,11 @@ int main() {
     Values values;
     data->make_graph(num_factors, graph, values);
     const int num_vars = static_cast<int>(values.size());
-    std::vector<Factor*> factors;
-    std::vector<FactorPoses> poses;
-    for (const auto& f : graph.factors) {
-      factors.push_back(f.get());
-      poses.push_back({&values.at(f->keys()[0]), &values.at(f->keys()[1])});
-    }
-    std::vector<FactorLinearization> lin(factors.size());
-    std::vector<double> errors(factors.size());
     const double points = static_cast<double>(num_factors) * data->points_per_cloud;
     for (int threads : {1, 2}) {
       tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
       CpuBackend backend;
-      double linearize_ms = 1e30, trial_ms = 1e30;  // best of 3
-      for (int rep = 0; rep < 3; ++rep) {
-        Stopwatch w;
-        backend.linearize(factors, poses, lin);
-        linearize_ms = std::min(linearize_ms, w.lap_ms());
-        backend.trial_errors(factors, poses, errors);
-        trial_ms = std::min(trial_ms, w.lap_ms());
-      }
+      const bench::Timing t = bench::time_backend(backend, graph, values, 3);
       LMConfig config;
       config.max_iterations = 5;
       config.relative_error_tol = 0.0;
@@ -57,7 +40,7 @@ int main() {
       for (const LMIteration& it : r.history) trials += it.trials;
       std::printf("factors=%4d vars=%3d threads=%d  linearization %.1f M points/s (%.1f ms)  trial evaluation %.1f M points/s"
                   "  LM %.1f ms/iteration (%.1f trials; linearize+evaluate %.1f, solve %.2f = %.1f%%)\n",
-                  num_factors, num_vars, threads, points / linearize_ms / 1e3, linearize_ms, points / trial_ms / 1e3,
+                  num_factors, num_vars, threads, points / t.linearize_ms / 1e3, t.linearize_ms, points / t.trial_ms / 1e3,
                   r.total_ms / r.iterations, static_cast<double>(trials) / r.iterations, r.linearize_ms / r.iterations, r.solve_ms / r.iterations,
                   100.0 * r.solve_ms / r.total_ms);
     }

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "gcmap/core/timer.hpp"
 #include "gcmap/graph/matching_graph.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/trajectory_io.hpp"
@@ -45,5 +46,34 @@ struct Kitti07 {
     }
   }
 };
+
+struct Timing {
+  double linearize_ms = 0.0, trial_ms = 0.0;
+};
+
+// Mean ms of one batched linearization and one trial evaluation of the whole graph, after a
+// warm-up call (uploads, batch layout).
+inline Timing time_backend(LinearizationBackend& backend, const FactorGraph& graph, const Values& values, int repeats) {
+  std::vector<Factor*> factors;
+  std::vector<FactorPoses> poses;
+  for (const auto& f : graph.factors) {
+    factors.push_back(f.get());
+    poses.push_back({&values.at(f->keys()[0]), &values.at(f->keys()[1])});
+  }
+  std::vector<FactorLinearization> lin(factors.size());
+  std::vector<double> errors(factors.size());
+  backend.linearize(factors, poses, lin);  // warm-up: uploads, batch layout
+  Timing t;
+  for (int r = 0; r < repeats; ++r) {
+    Stopwatch w;
+    backend.linearize(factors, poses, lin);
+    t.linearize_ms += w.lap_ms();
+    backend.trial_errors(factors, poses, errors);
+    t.trial_ms += w.lap_ms();
+  }
+  t.linearize_ms /= repeats;
+  t.trial_ms /= repeats;
+  return t;
+}
 
 }  // namespace gcmap::bench

@@ -118,20 +118,6 @@ inline size_t count(const LaneMask& m) {
   return n;
 }
 
-// Runs gather(i, batch) over [begin, end) in batches and hands each full or final batch to use().
-template <class Gather, class Use>
-inline void for_each_batch(size_t begin, size_t end, Gathered& g, Gather gather, Use use) {
-  g.size = 0;
-  for (size_t i = begin; i != end; ++i) {
-    gather(i, g);
-    if (g.size == Gathered::kCapacity) {
-      use(g);
-      g.size = 0;
-    }
-  }
-  if (g.size) use(g);
-}
-
 // Gathers source point i if it has a correspondence (associate(i, q) >= 0).
 template <class Target, class Associate>
 inline auto gatherer(const PointCloud& source, const Target& target, const PointTransform& X, Associate& associate) {
@@ -147,6 +133,32 @@ inline void rotation_rows(const PointTransform& X, float (&R)[3][3]) {
     for (int c = 0; c < 3; ++c) R[a][c] = X.R(a, c);
 }
 
+// Gathers source points [begin, end) batch by batch and runs body(terms, err) on every group of
+// kLanes associated points; body adds the groups' errors to err, which is summed in double per
+// batch. Returns that sum.
+template <class Gather, class Body>
+inline double for_each_lane_group(size_t begin, size_t end, Gather gather, const float (&R)[3][3], Body body) {
+  Gathered g;
+  double error = 0.0;
+  const auto run = [&] {
+    const int groups = g.close();
+    Lanes err = {};
+    for (int k = 0; k < groups; ++k) {
+      LaneTerms t;
+      lane_terms(g, k, R, t);
+      body(t, err);
+    }
+    error += horizontal_sum(err);
+    g.size = 0;
+  };
+  for (size_t i = begin; i != end; ++i) {
+    gather(i, g);
+    if (g.size == Gathered::kCapacity) run();
+  }
+  if (g.size) run();
+  return error;
+}
+
 // associate(i, q) -> target element of source point i (transformed to q), or -1.
 template <class Target, class Associate>
 TargetFrameSums accumulate_target_frame(const PointCloud& source, const Target& target, const Eigen::Isometry3d& T,
@@ -160,44 +172,36 @@ TargetFrameSums accumulate_target_frame(const PointCloud& source, const Target& 
         // Target-frame Jacobian B = [-Q, I], Q = [q]x: B^T W B = [[-Q W Q, Q W], [-W Q, W]],
         // B^T W e = [Q W e; W e]. Sums: Hrr (upper), Hrt (full), Htt (upper), br, bt, error.
         Lanes Hrr[6] = {}, Hrt[9] = {}, Htt[6] = {}, br[3] = {}, bt[3] = {};
-        double error = 0.0;
         size_t inliers = 0;
-        Gathered g;
-        for_each_batch(r.begin(), r.end(), g, gatherer(source, target, X, associate), [&](Gathered& batch) {
-          const int groups = batch.close();
-          Lanes err = {};
-          for (int k = 0; k < groups; ++k) {
-            LaneTerms t;
-            lane_terms(batch, k, R, t);
-            const Lanes(&W)[6] = t.W;
-            const Lanes &qx = t.q[0], &qy = t.q[1], &qz = t.q[2];
-            const Lanes We[3] = {W[0] * t.e[0] + W[1] * t.e[1] + W[2] * t.e[2],
-                                 W[1] * t.e[0] + W[3] * t.e[1] + W[4] * t.e[2],
-                                 W[2] * t.e[0] + W[4] * t.e[1] + W[5] * t.e[2]};
-            err += t.e[0] * We[0] + t.e[1] * We[1] + t.e[2] * We[2];
-            // QW, row by row (W symmetric).
-            Lanes QW[3][3];
-            for (int c = 0; c < 3; ++c) {
-              QW[0][c] = qy * W[kSym[2][c]] - qz * W[kSym[1][c]];
-              QW[1][c] = qz * W[kSym[0][c]] - qx * W[kSym[2][c]];
-              QW[2][c] = qx * W[kSym[1][c]] - qy * W[kSym[0][c]];
-            }
-            for (int a = 0; a < 3; ++a) {
-              // (QW Q)(a, c) for c >= a; Q's columns are (0, qz, -qy), (-qz, 0, qx), (qy, -qx, 0).
-              const Lanes P[3] = {QW[a][1] * qz - QW[a][2] * qy, QW[a][2] * qx - QW[a][0] * qz,
-                                  QW[a][0] * qy - QW[a][1] * qx};
-              for (int c = a; c < 3; ++c) Hrr[kSym[a][c]] -= P[c];
-              for (int c = 0; c < 3; ++c) Hrt[a * 3 + c] += QW[a][c];
-            }
-            for (int s = 0; s < 6; ++s) Htt[s] += W[s];
-            br[0] += qy * We[2] - qz * We[1];
-            br[1] += qz * We[0] - qx * We[2];
-            br[2] += qx * We[1] - qy * We[0];
-            for (int a = 0; a < 3; ++a) bt[a] += We[a];
-            inliers += count(t.valid);
+        const auto add_terms = [&](const LaneTerms& t, Lanes& err) {
+          const Lanes(&W)[6] = t.W;
+          const Lanes &qx = t.q[0], &qy = t.q[1], &qz = t.q[2];
+          const Lanes We[3] = {W[0] * t.e[0] + W[1] * t.e[1] + W[2] * t.e[2],
+                               W[1] * t.e[0] + W[3] * t.e[1] + W[4] * t.e[2],
+                               W[2] * t.e[0] + W[4] * t.e[1] + W[5] * t.e[2]};
+          err += t.e[0] * We[0] + t.e[1] * We[1] + t.e[2] * We[2];
+          // QW, row by row (W symmetric).
+          Lanes QW[3][3];
+          for (int c = 0; c < 3; ++c) {
+            QW[0][c] = qy * W[kSym[2][c]] - qz * W[kSym[1][c]];
+            QW[1][c] = qz * W[kSym[0][c]] - qx * W[kSym[2][c]];
+            QW[2][c] = qx * W[kSym[1][c]] - qy * W[kSym[0][c]];
           }
-          error += horizontal_sum(err);
-        });
+          for (int a = 0; a < 3; ++a) {
+            // (QW Q)(a, c) for c >= a; Q's columns are (0, qz, -qy), (-qz, 0, qx), (qy, -qx, 0).
+            const Lanes P[3] = {QW[a][1] * qz - QW[a][2] * qy, QW[a][2] * qx - QW[a][0] * qz,
+                                QW[a][0] * qy - QW[a][1] * qx};
+            for (int c = a; c < 3; ++c) Hrr[kSym[a][c]] -= P[c];
+            for (int c = 0; c < 3; ++c) Hrt[a * 3 + c] += QW[a][c];
+          }
+          for (int s = 0; s < 6; ++s) Htt[s] += W[s];
+          br[0] += qy * We[2] - qz * We[1];
+          br[1] += qz * We[0] - qx * We[2];
+          br[2] += qx * We[1] - qy * We[0];
+          for (int a = 0; a < 3; ++a) bt[a] += We[a];
+          inliers += count(t.valid);
+        };
+        const double error = for_each_lane_group(r.begin(), r.end(), gatherer(source, target, X, associate), R, add_terms);
         for (int a = 0; a < 3; ++a) {
           for (int c = 0; c < 3; ++c) {
             const double rt = horizontal_sum(Hrt[a * 3 + c]);
@@ -236,21 +240,14 @@ VgicpError sum_errors(const PointCloud& source, const Target& target, const Eige
   const Pair sum = tbb::parallel_deterministic_reduce(
       tbb::blocked_range<size_t>(0, source.size(), kGrain), Pair{0.0, 0},
       [&](const tbb::blocked_range<size_t>& r, Pair acc) {
-        Gathered g;
-        for_each_batch(r.begin(), r.end(), g, gatherer(source, target, X, associate), [&](Gathered& batch) {
-          const int groups = batch.close();
-          Lanes err = {};
-          for (int k = 0; k < groups; ++k) {
-            LaneTerms t;
-            lane_terms(batch, k, R, t);
-            const Lanes(&W)[6] = t.W;
-            const Lanes(&e)[3] = t.e;
-            err += W[0] * e[0] * e[0] + W[3] * e[1] * e[1] + W[5] * e[2] * e[2] +
-                   2.f * (W[1] * e[0] * e[1] + W[2] * e[0] * e[2] + W[4] * e[1] * e[2]);
-            acc.second += count(t.valid);
-          }
-          acc.first += horizontal_sum(err);
-        });
+        const auto add_error = [&](const LaneTerms& t, Lanes& err) {
+          const Lanes(&W)[6] = t.W;
+          const Lanes(&e)[3] = t.e;
+          err += W[0] * e[0] * e[0] + W[3] * e[1] * e[1] + W[5] * e[2] * e[2] +
+                 2.f * (W[1] * e[0] * e[1] + W[2] * e[0] * e[2] + W[4] * e[1] * e[2]);
+          acc.second += count(t.valid);
+        };
+        acc.first += for_each_lane_group(r.begin(), r.end(), gatherer(source, target, X, associate), R, add_error);
         return acc;
       },
       [](Pair a, const Pair& b) { return Pair{a.first + b.first, a.second + b.second}; });
