@@ -8,7 +8,6 @@
 #include <Eigen/Eigenvalues>
 #include <array>
 #include <bit>
-#include <cmath>
 #include <utility>
 
 #include "gcmap/core/error.hpp"
@@ -21,7 +20,6 @@ namespace {
 struct KeyedIndex {
   uint64_t key;
   uint32_t index;
-  bool operator<(const KeyedIndex& o) const { return key < o.key || (key == o.key && index < o.index); }
 };
 
 struct WideKeyedIndex {
