@@ -29,7 +29,7 @@ int main() {
   const std::vector<ScanNode>& nodes = data->nodes;
   const Trajectory& ref = data->reference;
   auto gpu = std::make_shared<cuda::CudaBackend>();
-  std::printf("device: %s; %zu points per factor on average\n", gpu->device_name().c_str(), points_per_factor);
+  std::printf("device: %s; %zu points per factor on average\n", gpu->name().c_str(), points_per_factor);
 
   for (int num_factors : {10, 100, 1000, 4500}) {
     FactorGraph graph;

@@ -76,17 +76,18 @@ TEST(VoxelTable, GrowsPastAProbeOverflowAndFailsCleanlyAtTheCap) {
 }
 
 TEST(Device, BackendSelection) {
-  EXPECT_NE(dynamic_cast<CpuBackend*>(cuda::make_backend("cpu").get()), nullptr);
-  EXPECT_THROW(cuda::make_backend("gpu"), Error);
+  EXPECT_EQ(cuda::make_backend(Device::cpu)->device(), Device::cpu);
+  EXPECT_EQ(cuda::make_backend(Device::cpu)->name(), "cpu");
+  EXPECT_THROW(parse_device("gpu", "--device"), Error);
   std::string why;
   if (cuda::device_available(&why)) {
-    EXPECT_NE(dynamic_cast<cuda::CudaBackend*>(cuda::make_backend("auto").get()), nullptr);
+    EXPECT_EQ(cuda::make_backend(Device::automatic)->device(), Device::cuda);
   } else {
     // A binary with or without CUDA runs here: auto falls back, cuda is refused with the reason.
     EXPECT_FALSE(why.empty());
-    EXPECT_NE(dynamic_cast<CpuBackend*>(cuda::make_backend("auto").get()), nullptr);
+    EXPECT_EQ(cuda::make_backend(Device::automatic)->device(), Device::cpu);
     try {
-      cuda::make_backend("cuda");
+      cuda::make_backend(Device::cuda);
       ADD_FAILURE() << "--device cuda without a GPU must fail";
     } catch (const Error& e) {
       EXPECT_NE(std::string(e.what()).find("--device cuda"), std::string::npos) << e.what();

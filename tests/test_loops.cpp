@@ -166,7 +166,8 @@ TEST_F(LoopScenario, ExplicitLoopUndoesDriftInjectedAtAGap) {
   struct Outcome {
     double ate = 0.0;
     std::vector<LoopRecord> loops;
-    std::vector<FactorInfo> factors;
+    std::vector<GlobalFactor> factors;
+    std::vector<FactorEvaluation> evaluation;
   };
   const auto run = [&](double drift_deg, double drift_m, bool loops) {
     cfg.loop.enabled = loops;
@@ -183,7 +184,7 @@ TEST_F(LoopScenario, ExplicitLoopUndoesDriftInjectedAtAGap) {
       truth.push_back(relative(0, f));
       estimate.push_back(all[f]);
     }
-    return Outcome{absolute_trajectory_error(truth, estimate).rmse, mapper.loops(), mapper.factors()};
+    return Outcome{absolute_trajectory_error(truth, estimate).rmse, mapper.loops(), mapper.factors(), mapper.evaluate_factors()};
   };
   const Outcome no_drift = run(0.0, 0.0, true);
   const Outcome without = run(10.0, 2.0, false);
@@ -196,10 +197,10 @@ TEST_F(LoopScenario, ExplicitLoopUndoesDriftInjectedAtAGap) {
   for (const LoopRecord& l : with.loops) accepted += l.accepted;
   EXPECT_EQ(accepted, 1);
   int loop_factors = 0;
-  for (const FactorInfo& f : with.factors) {
-    if (f.type != "loop") continue;
+  for (size_t f = 0; f < with.factors.size(); ++f) {
+    if (with.factors[f].kind != FactorKind::loop) continue;
     ++loop_factors;
-    EXPECT_EQ(f.weight, 0.0);
+    EXPECT_EQ(with.evaluation[f].weight, 0.0);
   }
   EXPECT_EQ(loop_factors, 1);
 }

@@ -40,8 +40,8 @@ struct Overrides {
   }
   MappingConfig resolve() const {
     MappingConfig c = config_file.empty() ? MappingConfig{} : MappingConfig::load(config_file);
-    if (!global_mode.empty()) c.global.mode = global_mode;
-    if (!factor.empty()) c.global.factor = factor;
+    if (!global_mode.empty()) c.global.mode = parse_global_mode(global_mode, "--global-mode");
+    if (!factor.empty()) c.global.factor = parse_factor_source(factor, "--factor");
     if (window >= 0) c.global.window = window;
     if (map_resolution >= 0) c.output.map_resolution = map_resolution;
     if (pcd) c.output.pcd = true;
@@ -73,11 +73,15 @@ void add_map(CLI::App& app, Runner& run) {
     run = [opt, ov] {
       const auto threads = limit_threads(ov->threads);
       opt->config = ov->resolve();
-      opt->device = ov->device;
+      opt->device = parse_device(ov->device, "--device");
       const MapRunResult r = run_mapping(*opt);
       std::printf("{\"frames\":%zu,\"submaps\":%zu,\"factors\":%zu,\"seconds\":%.3f,\"frames_per_second\":%.2f}\n", r.frames,
                   r.submaps, r.factors, r.seconds, r.fps);
-      return 0;
+      std::fprintf(stderr, "%s %zu frames in %.1f s (%.1f frames/s): %zu submaps, %zu global factors.\n",
+                   r.signal ? "Interrupted: mapped" : "Mapped", r.frames, r.seconds, r.fps, r.submaps, r.factors);
+      std::fprintf(stderr, "Wrote %s: trajectory.kitti and .tum (optimized poses), odometry.kitti, map.ply%s, graph.json, stats.json%s, config.yaml.\n",
+                   opt->output.c_str(), opt->config.output.pcd ? " and map.pcd" : "", r.signal ? " (marked partial)" : "");
+      return r.signal ? 128 + r.signal : 0;
     };
   });
 }
@@ -121,7 +125,7 @@ void add_demo(CLI::App& app, Runner& run) {
       mo.input = (dir / "sim").string();
       mo.output = (dir / "map").string();
       mo.config = ov->resolve();
-      mo.device = ov->device;
+      mo.device = parse_device(ov->device, "--device");
       mo.quiet = false;
       std::printf("mapping %s ...\n", mo.input.c_str());
       std::fflush(stdout);

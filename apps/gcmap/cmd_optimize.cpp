@@ -59,7 +59,7 @@ void add_optimize(CLI::App& app, Runner& run) {
         nodes[k] = make_scan_node(std::move(c), o.voxel);
         values[static_cast<int>(k)] = traj.poses[k];
       }
-      const std::shared_ptr<LinearizationBackend> backend = cuda::make_backend(o.device);
+      const std::shared_ptr<LinearizationBackend> backend = cuda::make_backend(parse_device(o.device, "--device"));
       FactorGraph graph;
       add_overlapping_pairs(graph, nodes, values, o.min_overlap, backend.get());
       LMConfig config;

@@ -51,7 +51,7 @@ void add_register(CLI::App& app, Runner& run) {
       PointCloud source = read_point_cloud(o.source, fields);
       if (target.size() < 10) throw Error(o.target + ": too few points (" + std::to_string(target.size()) + ")");
       if (source.size() < 10) throw Error(o.source + ": too few points (" + std::to_string(source.size()) + ")");
-      const std::shared_ptr<LinearizationBackend> backend = cuda::make_backend(o.device);  // outside the timings
+      const std::shared_ptr<LinearizationBackend> backend = cuda::make_backend(parse_device(o.device, "--device"));  // outside the timings
       watch.restart();
       if (o.downsample > 0) {
         target = voxel_downsample(target, o.downsample);
@@ -66,7 +66,7 @@ void add_register(CLI::App& app, Runner& run) {
       const GaussianVoxelMap& voxels = *voxel_map;
       const double t_vox = watch.lap_ms();
       RegistrationResult r;
-      if (dynamic_cast<const CpuBackend*>(backend.get())) {
+      if (backend->device() == Device::cpu) {
         RegistrationConfig config;
         config.max_iterations = o.max_iterations;
         r = align_vgicp(source, voxels, init, config);

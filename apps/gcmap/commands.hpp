@@ -25,9 +25,6 @@ void add_config(CLI::App& app, Runner& run);
 // "x y z qx qy qz qw" -> pose; throws Error naming the option.
 Eigen::Isometry3d parse_pose_option(const std::string& option, const std::string& text);
 
-// [x, y, z, qx, qy, qz, qw], the pose layout of every JSON output.
-Json pose_json(const Eigen::Isometry3d& T);
-
 // Applies --threads (0 = all cores) for the lifetime of the returned object.
 std::shared_ptr<void> limit_threads(int threads);
 

@@ -24,12 +24,6 @@ Eigen::Isometry3d parse_pose_option(const std::string& option, const std::string
   return pose_from_xyz_quat(v);
 }
 
-Json pose_json(const Eigen::Isometry3d& T) {
-  double v[7];
-  pose_to_xyz_quat(T, v);
-  return Json::Array(v, v + 7);
-}
-
 std::shared_ptr<void> limit_threads(int threads) {
   if (threads < 0) throw Error("--threads: must be >= 0");
   if (threads == 0) return nullptr;

@@ -1,71 +1,28 @@
 #include "map_runner.hpp"
 
-#include "commands.hpp"
-
 #include <spdlog/spdlog.h>
-#include <tbb/parallel_pipeline.h>
-#include <unistd.h>
 
+#include <atomic>
+#include <csignal>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
 
-#include "gcmap/cuda/cuda_backend.hpp"
 #include "gcmap/core/error.hpp"
-#include "gcmap/mapping/preprocess_scan.hpp"
-#include "gcmap/core/timer.hpp"
+#include "gcmap/cuda/cuda_backend.hpp"
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/sequence.hpp"
 #include "gcmap/io/trajectory_io.hpp"
-#include "gcmap/mapping/mapper.hpp"
-#include "gcmap/mapping/odometry.hpp"
+#include "gcmap/mapping/pipeline.hpp"
+#include "gcmap/mapping/report.hpp"
+#include "progress.hpp"
 
 namespace gcmap::cli {
 
 namespace fs = std::filesystem;
 
 namespace {
-
-// KITTI's HDL-64 scans need a 0.22 deg intrinsic elevation correction (as in CT-ICP/KISS-ICP).
-void kitti_vertical_correction(PointCloud& c) {
-  const double angle = 0.22 * M_PI / 180.0;
-  for (auto& p : c.points) {
-    const Eigen::Vector3d v = p.cast<double>();
-    const Eigen::Vector3d axis = v.cross(Eigen::Vector3d::UnitZ());
-    if (axis.norm() < 1e-9) continue;
-    p = (Eigen::AngleAxisd(angle, axis.normalized()) * v).cast<float>();
-  }
-}
-
-// SemanticKITTI moving classes (252-259) are dropped when labels/NNNNNN.label exists.
-void remove_dynamic(PointCloud& c, const std::string& label_path) {
-  std::error_code ec;
-  if (!fs::exists(label_path, ec)) return;
-  const std::string bytes = read_file(label_path);
-  if (bytes.size() != c.size() * 4) {
-    spdlog::warn("{}: {} labels for {} points, ignored", label_path, bytes.size() / 4, c.size());
-    return;
-  }
-  std::vector<char> keep(c.size());
-  for (size_t i = 0; i < c.size(); ++i) {
-    uint32_t l;
-    std::memcpy(&l, bytes.data() + 4 * i, 4);
-    const uint32_t cls = l & 0xffff;
-    keep[i] = !(cls >= 252 && cls <= 259);
-  }
-  c.filter(keep);
-}
-
-Json timing_json(const TimingStats& t) {
-  Json j = Json::object();
-  j["mean_ms"] = t.mean();
-  j["std_ms"] = t.stddev();
-  j["max_ms"] = t.max();
-  j["count"] = t.samples_ms.size();
-  return j;
-}
 
 void check_writable(const std::string& dir) {
   std::error_code ec;
@@ -78,210 +35,114 @@ void check_writable(const std::string& dir) {
   fs::remove(probe, ec);
 }
 
+// SIGINT/SIGTERM: the first stops reading scans (the run finishes what it has and writes partial
+// outputs), a second skips the final optimization.
+std::atomic<bool> g_stop{false};
+std::atomic<int> g_signals{0}, g_last_signal{0};
+extern "C" void on_signal(int sig) {
+  g_last_signal = sig;
+  g_stop = true;
+  ++g_signals;
+}
+
+class SignalScope {
+ public:
+  SignalScope() {
+    g_stop = false;
+    g_signals = 0;
+    g_last_signal = 0;
+    struct sigaction sa {};
+    sa.sa_handler = on_signal;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, &old_int_);
+    sigaction(SIGTERM, &sa, &old_term_);
+  }
+  ~SignalScope() {
+    sigaction(SIGINT, &old_int_, nullptr);
+    sigaction(SIGTERM, &old_term_, nullptr);
+  }
+
+ private:
+  struct sigaction old_int_ {}, old_term_ {};
+};
+
+void write_outputs(const MappingPipeline& pipeline, const FolderScanSource& source, const MapRunOptions& o,
+                   int signal) {
+  const fs::path out(o.output);
+  Trajectory traj;
+  traj.poses = pipeline.trajectory();
+  for (size_t f = 0; f < traj.poses.size(); ++f) traj.stamps.push_back(source.stamp(f));
+  traj.format = TrajectoryFormat::kitti;
+  write_trajectory((out / "trajectory.kitti").string(), traj);
+  traj.format = TrajectoryFormat::tum;
+  write_trajectory((out / "trajectory.tum").string(), traj);
+  Trajectory odom;
+  odom.poses = pipeline.odometry();
+  write_trajectory((out / "odometry.kitti").string(), odom);
+  const PointCloud map = pipeline.map(o.config.output.map_resolution);
+  write_ply((out / "map.ply").string(), map);
+  if (o.config.output.pcd) write_pcd((out / "map.pcd").string(), map);
+  const Json graph = graph_json(pipeline, source.start());
+  write_file_atomic((out / "graph.json").string(), [&](std::ostream& s) { s << graph.dump() << "\n"; });
+  Json stats = stats_json(pipeline);
+  stats["partial"] = signal != 0;
+  if (signal) stats["interrupted_by"] = signal == SIGINT ? "SIGINT" : "SIGTERM";
+  write_file_atomic((out / "stats.json").string(), [&](std::ostream& s) { s << stats.dump() << "\n"; });
+  write_file_atomic((out / "config.yaml").string(), [&](std::ostream& s) { s << o.config.to_yaml(); });
+}
+
+std::string progress_detail(const MappingPipeline& p) {
+  const auto& opt = p.mapper().global_stats().optimization.samples_ms;
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "submaps %zu  factors %zu  last global opt %.0f ms", p.submaps().size(), p.factors().size(),
+                opt.empty() ? 0.0 : opt.back());
+  return buf;
+}
+
 }  // namespace
 
 MapRunResult run_mapping(const MapRunOptions& o) {
-  const MappingConfig& cfg = o.config;
-  cfg.validate();
-  if (o.start < 0) throw Error("--start: must be >= 0");
-  if (o.max_frames < 0) throw Error("--max-frames: must be >= 0");
-  std::vector<std::string> files = list_scan_files(o.input);
-  if (o.start >= static_cast<int>(files.size()))
-    throw Error("--start " + std::to_string(o.start) + ": the sequence has " + std::to_string(files.size()) + " scans");
-  files.erase(files.begin(), files.begin() + o.start);
-  if (o.max_frames > 0 && static_cast<int>(files.size()) > o.max_frames) files.resize(o.max_frames);
+  o.config.validate();
+  FolderScanSource source(o.input, o.start, o.max_frames);
   check_writable(o.output);
-
   Trajectory initial;
   if (!o.initial_trajectory.empty()) {
     initial = read_trajectory(o.initial_trajectory);
-    if (initial.size() < files.size() + o.start)
-      throw Error(o.initial_trajectory + ": has " + std::to_string(initial.size()) + " poses, need " + std::to_string(files.size() + o.start));
+    const size_t need = source.size_hint() + o.start;
+    if (initial.size() < need)
+      throw Error(o.initial_trajectory + ": has " + std::to_string(initial.size()) + " poses, need " + std::to_string(need));
   }
-  const bool kitti = is_kitti_layout(o.input);
-  // Our simulator writes the KITTI layout too, without the HDL-64's elevation error.
-  const bool simulated = fs::exists(fs::path(o.input) / "scenario.json");
-  const bool vertical = cfg.preprocess.kitti_vertical_correction && kitti && !simulated;
-  const fs::path labels_dir = fs::path(o.input) / "labels";
-  const bool with_labels = cfg.preprocess.remove_dynamic_labels && fs::is_directory(labels_dir);
-  const bool progress = !o.quiet && isatty(2);
 
-  Odometry odometry(cfg.odometry);
-  const std::shared_ptr<LinearizationBackend> backend = cuda::make_backend(o.device);
-  Mapper mapper(cfg, backend);
-  std::vector<Eigen::Isometry3d> odom_poses;
-  TimingStats t_pre, t_odom;
-  Stopwatch total;
-  size_t skipped = 0;
-  // Scans are read and preprocessed ahead (up to 3 in flight, in parallel with the mapping of
-  // earlier frames), then fed to odometry and mapping in order. The mapping stage alone cannot keep
-  // both cores busy: its LM solve, assembly and voxel-map inserts are serial.
-  struct Scan {
-    size_t frame = 0;
-    std::shared_ptr<PointCloud> cloud;  // null: unreadable
-    std::string error;
-    double preprocess_ms = 0.0;
-  };
-  size_t next = 0;
-  tbb::parallel_pipeline(
-      3,
-      tbb::make_filter<void, Scan>(tbb::filter_mode::serial_in_order,
-                                   [&](tbb::flow_control& fc) {
-                                     Scan scan;
-                                     if (next == files.size()) fc.stop();
-                                     else scan.frame = next++;
-                                     return scan;
-                                   }) &
-          tbb::make_filter<Scan, Scan>(tbb::filter_mode::parallel,
-                                       [&](Scan scan) {
-                                         Stopwatch w;
-                                         try {
-                                           const std::string& file = files[scan.frame];
-                                           PointCloud raw = read_point_cloud(file);
-                                           if (with_labels)
-                                             remove_dynamic(raw, (labels_dir / (fs::path(file).stem().string() + ".label")).string());
-                                           if (vertical) kitti_vertical_correction(raw);
-                                           scan.cloud = std::make_shared<PointCloud>(preprocess_scan(raw, cfg.preprocess));
-                                         } catch (const Error& e) {
-                                           scan.error = e.what();
-                                         }
-                                         scan.preprocess_ms = w.ms();
-                                         return scan;
-                                       }) &
-          tbb::make_filter<Scan, void>(tbb::filter_mode::serial_in_order, [&](const Scan& scan) {
-            const size_t f = scan.frame;
-            const std::shared_ptr<PointCloud>& cloud = scan.cloud;
-            if (!cloud) {
-              spdlog::warn("skipping scan: {}", scan.error);
-              ++skipped;
-            }
-            t_pre.add(scan.preprocess_ms);
-            Stopwatch w;
-            Eigen::Isometry3d T;
-            if (!o.initial_trajectory.empty()) {
-              T = initial.poses[o.start].inverse() * initial.poses[f + o.start];
-              odometry.set_pose(T);
-            } else if (cloud) {
-              T = odometry.track(cloud);
-            } else {
-              T = odometry.predict();
-              odometry.set_pose(T);
-            }
-            t_odom.add(w.lap_ms());
-            odom_poses.push_back(T);
-            mapper.add_frame(static_cast<int>(f), cloud, T);
-            if (progress && (f % 5 == 0 || f + 1 == files.size())) {
-              std::fprintf(stderr, "\rframe %zu/%zu  %.1f frames/s  submaps %zu  factors %zu  last global opt %.0f ms   ", f + 1,
-                           files.size(), (f + 1) / (total.ms() / 1000.0), mapper.submaps().size(), mapper.num_global_factors(),
-                           mapper.stats().global_optimization.samples_ms.empty() ? 0.0 : mapper.stats().global_optimization.samples_ms.back());
-            }
-          }));
-  mapper.finish();
-  if (progress) std::fprintf(stderr, "\n");
-  const double seconds = total.ms() / 1000.0;
-
-  // Outputs, each written atomically.
-  const std::vector<Eigen::Isometry3d> traj = mapper.trajectory();
-  std::vector<double> stamps;
+  PipelineOptions po;
+  po.kitti_hdl64 = source.kitti_hdl64();
+  MappingPipeline pipeline(o.config, cuda::make_backend(o.device), po);
+  Progress progress("frame", source.size_hint(), o.quiet);
+  MappingPipeline::RunOptions ro;
+  if (!o.initial_trajectory.empty())
+    ro.initial_pose = [&](int f) { return initial.poses[o.start].inverse() * initial.poses[f + o.start]; };
+  ro.on_frame = [&](const Frame& f) { progress.update(f.index + 1, progress_detail(pipeline)); };
+  ro.stop = &g_stop;
+  int signal = 0;
   {
-    std::ifstream in(fs::path(o.input) / "times.txt");
-    double t;
-    while (in >> t) stamps.push_back(t);
+    SignalScope signals;
+    pipeline.run(source, ro);
+    progress.finish();
+    if (g_stop) {
+      signal = g_last_signal;
+      spdlog::warn("interrupted after {} frames: closing the open submap, {} final optimization, writing partial outputs",
+                   pipeline.num_frames(), g_signals > 1 ? "no" : "a bounded");
+    }
+    pipeline.finish(signal ? std::optional<int>(g_signals > 1 ? 0 : 5) : std::nullopt);
   }
-  Trajectory out;
-  out.poses = traj;
-  for (size_t f = 0; f < traj.size(); ++f) out.stamps.push_back(f + o.start < stamps.size() ? stamps[f + o.start] : 0.1 * (f + o.start));
-  out.format = TrajectoryFormat::kitti;
-  write_trajectory((fs::path(o.output) / "trajectory.kitti").string(), out);
-  out.format = TrajectoryFormat::tum;
-  write_trajectory((fs::path(o.output) / "trajectory.tum").string(), out);
-  Trajectory odom;
-  odom.poses = odom_poses;
-  write_trajectory((fs::path(o.output) / "odometry.kitti").string(), odom);
-  const PointCloud map = mapper.assemble_map(cfg.output.map_resolution);
-  write_ply((fs::path(o.output) / "map.ply").string(), map);
-  if (cfg.output.pcd) write_pcd((fs::path(o.output) / "map.pcd").string(), map);
-
-  Json graph = Json::object();
-  Json submaps = Json::array();
-  for (const Submap& s : mapper.submaps()) {
-    Json j = Json::object();
-    j["id"] = s.id;
-    j["pose"] = pose_json(mapper.submap_pose(s.id));
-    j["first_frame"] = s.keyframes.front() + o.start;
-    j["last_frame"] = s.keyframes.back() + o.start;
-    j["keyframes"] = s.keyframes.size();
-    j["points"] = s.cloud->size();
-    submaps.push_back(j);
-  }
-  graph["submaps"] = submaps;
-  Json factors = Json::array();
-  for (const FactorInfo& fi : mapper.factors()) {
-    Json j = Json::object();
-    j["type"] = fi.type;
-    j["source"] = fi.source;
-    j["target"] = fi.target;
-    j["overlap"] = fi.overlap;
-    j["final_error"] = fi.error;
-    if (fi.type != "matching_cost") j["final_weight"] = fi.weight;
-    j["explicit_loop"] = fi.type == "loop";
-    factors.push_back(j);
-  }
-  graph["factors"] = factors;
-  Json loops = Json::array();  // every verified candidate, accepted or not
-  for (const LoopRecord& l : mapper.loops()) {
-    Json j = Json::object();
-    j["source"] = l.source;
-    j["target"] = l.target;
-    j["descriptor_distance"] = l.descriptor_distance;
-    j["inlier_fraction"] = l.inlier_fraction;
-    j["inlier_rmse"] = l.inlier_rmse;
-    j["accepted"] = l.accepted;
-    loops.push_back(j);
-  }
-  graph["loop_candidates"] = loops;
-  write_file_atomic((fs::path(o.output) / "graph.json").string(), [&](std::ostream& s) { s << graph.dump() << "\n"; });
-
-  const MapperStats& ms = mapper.stats();
-  Json stats = Json::object();
-  stats["frames"] = files.size();
-  stats["skipped_scans"] = skipped;
-  stats["seconds"] = seconds;
-  stats["frames_per_second"] = files.size() / seconds;
-  const auto* gpu = dynamic_cast<const cuda::CudaBackend*>(backend.get());
-  stats["device"] = gpu ? "cuda: " + gpu->device_name() : std::string("cpu");
-  Json timing = Json::object();
-  timing["preprocess"] = timing_json(t_pre);
-  timing["odometry"] = timing_json(t_odom);
-  timing["local_factor_creation"] = timing_json(ms.local_factors);
-  timing["local_optimization"] = timing_json(ms.local_optimization);
-  timing["global_factor_creation"] = timing_json(ms.global_factors);
-  timing["global_optimization"] = timing_json(ms.global_optimization);
-  timing["loop_detection"] = timing_json(ms.loop_detection);
-  timing["loop_verification"] = timing_json(ms.loop_verification);
-  stats["timing"] = timing;
-  Json per = Json::array();
-  for (const auto& p : ms.per_submap) {
-    Json j = Json::object();
-    j["submaps"] = p.num_submaps;
-    j["factors"] = p.num_factors;
-    j["global_optimization_ms"] = p.global_optimization_ms;
-    j["global_iterations"] = p.global_iterations;
-    per.push_back(j);
-  }
-  stats["per_submap"] = per;
-  stats["final_optimization_ms"] = ms.final_optimization_ms;
-  stats["final_iterations"] = ms.final_iterations;
-  write_file_atomic((fs::path(o.output) / "stats.json").string(), [&](std::ostream& s) { s << stats.dump() << "\n"; });
-  write_file_atomic((fs::path(o.output) / "config.yaml").string(), [&](std::ostream& s) { s << cfg.to_yaml(); });
+  write_outputs(pipeline, source, o, signal);
 
   MapRunResult r;
-  r.frames = files.size();
-  r.submaps = mapper.submaps().size();
-  r.factors = mapper.num_global_factors();
-  r.seconds = seconds;
-  r.fps = files.size() / seconds;
-  r.stats = stats;
+  r.frames = pipeline.num_frames();
+  r.submaps = pipeline.submaps().size();
+  r.factors = pipeline.factors().size();
+  r.seconds = pipeline.stats().seconds;
+  r.fps = r.seconds > 0 ? r.frames / r.seconds : 0.0;
+  r.signal = signal;
   return r;
 }
 

@@ -1,7 +1,7 @@
 #pragma once
 #include <string>
 
-#include "gcmap/io/json.hpp"
+#include "gcmap/graph/backend.hpp"
 #include "gcmap/mapping/config.hpp"
 
 namespace gcmap::cli {
@@ -10,17 +10,17 @@ struct MapRunOptions {
   std::string input, output, initial_trajectory;
   MappingConfig config;
   int start = 0, max_frames = 0;
-  std::string device = "auto";  // cpu, cuda or auto
+  Device device = Device::automatic;
   bool quiet = false;
 };
 
 struct MapRunResult {
   size_t frames = 0, submaps = 0, factors = 0;
   double seconds = 0.0, fps = 0.0;
-  Json stats;
+  int signal = 0;  // SIGINT or SIGTERM when interrupted (outputs are then partial)
 };
 
-// Runs the whole pipeline on a sequence folder and writes every output into options.output.
+// Reads the input, runs the mapping pipeline and writes every output into options.output.
 MapRunResult run_mapping(const MapRunOptions& options);
 
 }  // namespace gcmap::cli

@@ -1,5 +1,6 @@
 #pragma once
 #include <chrono>
+#include <vector>
 
 namespace gcmap {
 
@@ -17,6 +18,15 @@ class Stopwatch {
 
  private:
   std::chrono::steady_clock::time_point start_;
+};
+
+// Every sample of one timed stage, for means, spreads and per-event curves.
+struct TimingStats {
+  std::vector<double> samples_ms;
+  void add(double ms) { samples_ms.push_back(ms); }
+  double mean() const;
+  double stddev() const;
+  double max() const;
 };
 
 }  // namespace gcmap

@@ -235,7 +235,7 @@ DeviceMemory CudaBackend::memory() const {
   return m;
 }
 
-std::string CudaBackend::device_name() const { return device::device_name(); }
+std::string CudaBackend::name() const { return std::string("cuda: ") + device::device_name(); }
 
 #else  // no CUDA in this build
 
@@ -253,14 +253,13 @@ void CudaBackend::overlaps(const std::shared_ptr<const PointCloud>&, std::span<c
                            std::span<const Eigen::Isometry3d>, std::span<double>) {}
 void CudaBackend::release_unused() {}
 DeviceMemory CudaBackend::memory() const { return {}; }
-std::string CudaBackend::device_name() const { return {}; }
+std::string CudaBackend::name() const { return "cuda"; }
 
 #endif
 
-std::shared_ptr<LinearizationBackend> make_backend(const std::string& device) {
-  if (device == "cpu") return std::make_shared<CpuBackend>();
-  if (device == "cuda") return std::make_shared<CudaBackend>();
-  if (device != "auto") throw Error("--device: expected cpu, cuda or auto, got '" + device + "'");
+std::shared_ptr<LinearizationBackend> make_backend(Device device) {
+  if (device == Device::cpu) return std::make_shared<CpuBackend>();
+  if (device == Device::cuda) return std::make_shared<CudaBackend>();
   std::string why;
   if (device_available(&why)) return std::make_shared<CudaBackend>();
 #ifdef GCMAP_WITH_CUDA

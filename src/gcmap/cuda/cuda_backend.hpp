@@ -5,7 +5,7 @@
 #include <memory>
 #include <string>
 
-#include "gcmap/graph/factor_graph.hpp"
+#include "gcmap/graph/backend.hpp"
 
 namespace gcmap::cuda {
 
@@ -35,15 +35,16 @@ class CudaBackend : public LinearizationBackend {
   // set of factors changes).
   void release_unused();
   DeviceMemory memory() const;
-  std::string device_name() const;
+  Device device() const override { return Device::cuda; }
+  std::string name() const override;
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
 
-// "cpu", "cuda" or "auto". auto picks the GPU when one answers and otherwise logs one line and
-// uses the CPU; cuda without a usable GPU is an error.
-std::shared_ptr<LinearizationBackend> make_backend(const std::string& device);
+// auto picks the GPU when one answers and otherwise logs one line and uses the CPU; cuda without a
+// usable GPU is an error.
+std::shared_ptr<LinearizationBackend> make_backend(Device device);
 
 }  // namespace gcmap::cuda

@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-#include "gcmap/graph/factor_graph.hpp"
+#include "gcmap/graph/backend.hpp"
 
 namespace gcmap {
 

@@ -24,12 +24,9 @@ std::vector<PairOverlap> add_overlapping_pairs(FactorGraph& graph, const std::ve
       targets.push_back(nodes[i].voxels);
       T_target_source.push_back(values.at(i).inverse() * values.at(j));
     }
-    std::vector<double> overlaps(targets.size());
-    backend->overlaps(nodes[j].cloud, targets, T_target_source, overlaps);
-    for (int i = 0; i < j; ++i) {
-      if (overlaps[i] < min_overlap) continue;
-      graph.add(std::make_shared<MatchingCostFactor>(j, i, nodes[j].cloud, nodes[i].voxels));
-      kept.push_back({j, i, overlaps[i]});
+    for (const TargetOverlap& t : overlapping_targets(*backend, nodes[j].cloud, targets, T_target_source, min_overlap)) {
+      graph.add(std::make_shared<MatchingCostFactor>(j, t.index, nodes[j].cloud, nodes[t.index].voxels));
+      kept.push_back({j, t.index, t.overlap});
     }
   }
   return kept;

@@ -2,7 +2,7 @@
 #include <memory>
 #include <vector>
 
-#include "gcmap/graph/factor_graph.hpp"
+#include "gcmap/graph/backend.hpp"
 
 namespace gcmap {
 

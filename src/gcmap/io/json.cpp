@@ -3,6 +3,8 @@
 #include <cmath>
 #include <cstdio>
 
+#include "gcmap/core/se3.hpp"
+
 namespace gcmap {
 
 Json& Json::operator[](const std::string& key) {
@@ -76,6 +78,12 @@ void Json::dump_to(std::string& out) const {
     }
     out += '}';
   }
+}
+
+Json pose_json(const Eigen::Isometry3d& T) {
+  double v[7];
+  pose_to_xyz_quat(T, v);
+  return Json::Array(v, v + 7);
 }
 
 }  // namespace gcmap

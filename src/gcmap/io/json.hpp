@@ -1,5 +1,6 @@
 #pragma once
 // A minimal JSON value for the CLI's machine-readable output (no parsing needed anywhere).
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <map>
 #include <string>
@@ -39,5 +40,8 @@ class Json {
   void dump_to(std::string& out) const;
   std::variant<std::nullptr_t, bool, double, std::string, Array, Object> value_;
 };
+
+// [x, y, z, qx, qy, qz, qw], the pose layout of every JSON output.
+Json pose_json(const Eigen::Isometry3d& T);
 
 }  // namespace gcmap

@@ -1,9 +1,15 @@
 #include "gcmap/io/sequence.hpp"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 
 #include "gcmap/core/error.hpp"
+#include "gcmap/io/file.hpp"
+#include "gcmap/io/point_cloud_io.hpp"
 
 namespace gcmap {
 
@@ -29,6 +35,60 @@ std::vector<std::string> list_scan_files(const std::string& dir) {
   std::sort(files.begin(), files.end());
   if (files.empty()) throw Error(root.string() + ": no .bin, .pcd or .ply scans");
   return files;
+}
+
+namespace {
+
+// A sidecar of 4-byte values per point, or nothing (absent, or a count that does not match).
+template <typename T>
+std::vector<T> read_sidecar(const fs::path& path, size_t points) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) return {};
+  const std::string bytes = read_file(path.string());
+  if (bytes.size() != points * sizeof(T)) {
+    spdlog::warn("{}: {} values for {} points, ignored", path.string(), bytes.size() / sizeof(T), points);
+    return {};
+  }
+  std::vector<T> out(points);
+  if (points) std::memcpy(out.data(), bytes.data(), bytes.size());
+  return out;
+}
+
+}  // namespace
+
+FolderScanSource::FolderScanSource(const std::string& dir, int start, int max_frames) : dir_(dir), start_(start) {
+  if (start < 0) throw Error("--start: must be >= 0");
+  if (max_frames < 0) throw Error("--max-frames: must be >= 0");
+  files_ = list_scan_files(dir);
+  if (start >= static_cast<int>(files_.size()))
+    throw Error("--start " + std::to_string(start) + ": the sequence has " + std::to_string(files_.size()) + " scans");
+  files_.erase(files_.begin(), files_.begin() + start);
+  if (max_frames > 0 && static_cast<int>(files_.size()) > max_frames) files_.resize(max_frames);
+  std::ifstream in(fs::path(dir) / "times.txt");
+  double t;
+  while (in >> t) stamps_.push_back(t);
+  // Our simulator writes the KITTI layout too, without the HDL-64's elevation error.
+  kitti_hdl64_ = is_kitti_layout(dir) && !fs::exists(fs::path(dir) / "scenario.json");
+}
+
+double FolderScanSource::stamp(size_t i) const {
+  const size_t k = i + start_;
+  return k < stamps_.size() ? stamps_[k] : 0.1 * k;
+}
+
+std::optional<ScanRecord> FolderScanSource::next() {
+  if (next_ == files_.size()) return std::nullopt;
+  const size_t i = next_++;
+  ScanRecord r;
+  r.stamp = stamp(i);
+  r.load = [file = files_[i], dir = fs::path(dir_)] {
+    PointCloud c = read_point_cloud(file);
+    const std::string stem = fs::path(file).stem().string();
+    c.labels = read_sidecar<uint32_t>(dir / "labels" / (stem + ".label"), c.size());
+    c.times = read_sidecar<float>(dir / "point_times" / (stem + ".bin"), c.size());
+    return c;
+  };
+  return r;
 }
 
 }  // namespace gcmap

@@ -13,6 +13,20 @@ namespace gcmap {
 
 namespace {
 
+template <typename E, size_t N>
+E parse_enum(const std::string& text, const std::string& key, const std::pair<E, const char*> (&names)[N]) {
+  std::string list;
+  for (const auto& [value, name] : names) {
+    if (text == name) return value;
+    list += (list.empty() ? "" : ", ") + std::string(name);
+  }
+  throw Error(key + " must be one of " + list + ", got '" + text + "'");
+}
+
+constexpr std::pair<GlobalMode, const char*> kGlobalModes[] = {{GlobalMode::full, "full"},
+                                                               {GlobalMode::sliding_window, "sliding-window"}};
+constexpr std::pair<FactorSource, const char*> kFactorSources[] = {{FactorSource::vgicp, "vgicp"}, {FactorSource::se3, "se3"}};
+
 // Visits every (section, key, field) once, for loading and dumping alike.
 template <typename Config, typename Visitor>
 void visit(Config& c, Visitor&& v) {
@@ -22,6 +36,7 @@ void visit(Config& c, Visitor&& v) {
   v("preprocess", "num_neighbors", c.preprocess.num_neighbors);
   v("preprocess", "kitti_vertical_correction", c.preprocess.kitti_vertical_correction);
   v("preprocess", "remove_dynamic_labels", c.preprocess.remove_dynamic_labels);
+  v("preprocess", "deskew", c.preprocess.deskew);
   v("odometry", "voxel_resolution", c.odometry.voxel_resolution);
   v("odometry", "model_keyframes", c.odometry.model_keyframes);
   v("odometry", "keyframe_distance", c.odometry.keyframe_distance);
@@ -67,8 +82,16 @@ void visit(Config& c, Visitor&& v) {
 
 }  // namespace
 
-MappingConfig MappingConfig::load(const std::string& path) {
-  const std::string text = read_file(path);
+const char* to_string(GlobalMode mode) { return kGlobalModes[static_cast<int>(mode)].second; }
+const char* to_string(FactorSource source) { return kFactorSources[static_cast<int>(source)].second; }
+GlobalMode parse_global_mode(const std::string& text, const std::string& key) { return parse_enum(text, key, kGlobalModes); }
+FactorSource parse_factor_source(const std::string& text, const std::string& key) {
+  return parse_enum(text, key, kFactorSources);
+}
+
+MappingConfig MappingConfig::load(const std::string& path) { return parse(read_file(path), path); }
+
+MappingConfig MappingConfig::parse(const std::string& text, const std::string& path) {
   YAML::Node root;
   try {
     root = YAML::Load(text);
@@ -95,10 +118,16 @@ MappingConfig MappingConfig::load(const std::string& path) {
     if (!section.IsDefined() || !section.IsMap()) return;
     const YAML::Node node = section[k];
     if (!node.IsDefined()) return;
+    using T = std::decay_t<decltype(field)>;
+    const std::string key = std::string(s) + "." + k;
     try {
-      field = node.as<std::decay_t<decltype(field)>>();
+      if constexpr (std::is_same_v<T, GlobalMode>) field = parse_global_mode(node.as<std::string>(), key);
+      else if constexpr (std::is_same_v<T, FactorSource>) field = parse_factor_source(node.as<std::string>(), key);
+      else field = node.as<T>();
+    } catch (const Error& e) {
+      throw Error(path + ": " + e.what());
     } catch (const YAML::Exception&) {
-      throw Error(path + ": key '" + std::string(s) + "." + k + "' has an unreadable value");
+      throw Error(path + ": key '" + key + "' has an unreadable value");
     }
   });
   try {
@@ -120,6 +149,7 @@ std::string MappingConfig::to_yaml() const {
     }
     out << "  " << k << ": ";
     if constexpr (std::is_same_v<std::decay_t<decltype(field)>, bool>) out << (field ? "true" : "false");
+    else if constexpr (std::is_enum_v<std::decay_t<decltype(field)>>) out << to_string(field);
     else out << field;
     out << "\n";
   });
@@ -145,9 +175,7 @@ void MappingConfig::validate() const {
   need(local.factor_source_points == 0 || local.factor_source_points >= 1000, "local.factor_source_points must be 0 or >= 1000");
   need(global.th_min >= 0 && global.th_min <= 1, "global.th_min must be in [0, 1]");
   need(global.voxel_resolution > 0, "global.voxel_resolution must be positive");
-  need(global.mode == "full" || global.mode == "sliding-window", "global.mode must be full or sliding-window");
   need(global.window >= 1, "global.window must be >= 1");
-  need(global.factor == "vgicp" || global.factor == "se3", "global.factor must be vgicp or se3");
   need(global.max_iterations >= 1 && global.final_iterations >= 1, "global iteration limits must be >= 1");
   need(local.relative_error_tol >= 0 && global.relative_error_tol >= 0, "relative_error_tol must be >= 0");
   need(loop.scan_context.rings >= 1 && loop.scan_context.sectors >= 2 && loop.scan_context.max_radius > 0,

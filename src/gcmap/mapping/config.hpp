@@ -7,6 +7,17 @@
 
 namespace gcmap {
 
+// full: a factor to every overlapping past submap (the paper); sliding_window: only the last K.
+enum class GlobalMode { full, sliding_window };
+// vgicp: matching-cost factors (the paper); se3: relative poses from scan matching (its ablation).
+enum class FactorSource { vgicp, se3 };
+// The names used in YAML and on the command line ("full", "sliding-window", "vgicp", "se3").
+const char* to_string(GlobalMode mode);
+const char* to_string(FactorSource source);
+// Throws Error naming `key` when the text is none of the names.
+GlobalMode parse_global_mode(const std::string& text, const std::string& key);
+FactorSource parse_factor_source(const std::string& text, const std::string& key);
+
 struct PreprocessConfig {
   double min_range = 2.0;  // m: drops returns from the ego vehicle
   double max_range = 100.0;
@@ -14,6 +25,8 @@ struct PreprocessConfig {
   int num_neighbors = 10;    // covariance estimation
   bool kitti_vertical_correction = true;  // 0.22 deg intrinsic correction, KITTI layouts only
   bool remove_dynamic_labels = true;      // SemanticKITTI moving classes, when labels/ exists
+  // Motion compensation of scans with per-point times, by the odometry's constant-velocity motion.
+  bool deskew = true;
 };
 
 struct OdometryConfig {
@@ -39,9 +52,9 @@ struct LocalMappingConfig {
 struct GlobalMappingConfig {
   double th_min = 0.025;          // th_min_G: overlap needed for a matching-cost factor
   double voxel_resolution = 1.0;  // r_G
-  std::string mode = "full";      // full | sliding-window
+  GlobalMode mode = GlobalMode::full;
   int window = 5;                 // sliding-window: connect to this many predecessors
-  std::string factor = "vgicp";   // vgicp | se3
+  FactorSource factor = FactorSource::vgicp;
   int max_iterations = 10;        // per insertion (warm-started)
   double relative_error_tol = 1e-4;  // per insertion; the final optimization runs to 1e-6
   int final_iterations = 50;
@@ -89,6 +102,8 @@ struct MappingConfig {
 
   // Throws Error("PATH: ...") naming the offending key.
   static MappingConfig load(const std::string& path);
+  // The same from YAML text; `origin` prefixes errors (a path, or e.g. "config").
+  static MappingConfig parse(const std::string& yaml, const std::string& origin);
   std::string to_yaml() const;
   void validate() const;
 };

@@ -36,17 +36,30 @@ Eigen::Isometry3d Odometry::track(const std::shared_ptr<const PointCloud>& frame
     add_keyframe(frame, last_);
     return last_;
   }
+  accept(frame, estimate(*frame, predict()));
+  return last_;
+}
+
+Eigen::Isometry3d Odometry::estimate(const PointCloud& frame, const Eigen::Isometry3d& guess) const {
+  if (!model_) return guess;
   RegistrationConfig reg;
   reg.max_iterations = config_.max_iterations;
-  const RegistrationResult r = align_vgicp(*frame, *model_, predict(), reg);
-  const Eigen::Isometry3d T = r.num_inliers > 50 ? r.T_target_source : predict();
+  const RegistrationResult r = align_vgicp(frame, *model_, guess, reg);
+  return r.num_inliers > 50 ? r.T_target_source : guess;
+}
+
+void Odometry::accept(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T) {
+  if (!model_) {
+    set_pose(T);
+    add_keyframe(frame, T);
+    return;
+  }
   set_pose(T);
   const Eigen::Isometry3d delta = keyframes_.back().first.inverse() * T;
   if (delta.translation().norm() > config_.keyframe_distance ||
       rotation_angle(delta) > config_.keyframe_angle_deg * M_PI / 180.0) {
     add_keyframe(frame, T);
   }
-  return T;
 }
 
 }  // namespace gcmap

@@ -16,6 +16,11 @@ class Odometry {
   // T_world_frame of a preprocessed frame (with covariances). A frame too small to register (empty
   // or dropped scan) gets the constant-velocity prediction and *ok = false.
   Eigen::Isometry3d track(const std::shared_ptr<const PointCloud>& frame, bool* ok = nullptr);
+  // The two halves of track() for a usable frame: scan-to-model registration from a guess (no
+  // state change), then the accepted pose and possibly a new keyframe of the model.
+  Eigen::Isometry3d estimate(const PointCloud& frame, const Eigen::Isometry3d& guess) const;
+  void accept(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T);
+  bool has_model() const { return model_ != nullptr; }
 
   // The constant-velocity guess for the next frame (also used for frames that fail to load).
   Eigen::Isometry3d predict() const;

@@ -1,0 +1,50 @@
+#include "progress.hpp"
+
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <cstdio>
+
+namespace gcmap::cli {
+
+namespace {
+std::string eta_text(double seconds) {
+  char buf[32];
+  const int s = static_cast<int>(seconds + 0.5);
+  if (s >= 3600) std::snprintf(buf, sizeof buf, "%dh%02dm", s / 3600, s / 60 % 60);
+  else std::snprintf(buf, sizeof buf, "%dm%02ds", s / 60, s % 60);
+  return buf;
+}
+}  // namespace
+
+Progress::Progress(std::string what, size_t total, bool quiet)
+    : what_(std::move(what)), total_(total), quiet_(quiet), tty_(isatty(2)) {}
+
+void Progress::update(size_t done, const std::string& detail) {
+  if (quiet_) return;
+  const double t = seconds();
+  const bool last = total_ && done == total_;
+  if (!last && t - last_log_s_ < (tty_ ? 0.2 : 5.0)) return;
+  last_log_s_ = t;
+  const double rate = t > 0 ? done / t : 0.0;
+  std::string line = what_ + " " + std::to_string(done);
+  if (total_) line += "/" + std::to_string(total_);
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "  %.1f/s", rate);
+  line += buf;
+  if (total_ && rate > 0 && done < total_) line += "  ETA " + eta_text((total_ - done) / rate);
+  if (!detail.empty()) line += "  " + detail;
+  if (tty_) {
+    std::fprintf(stderr, "\r%s\033[K", line.c_str());
+    drawn_ = true;
+  } else {
+    spdlog::info("{}", line);
+  }
+}
+
+void Progress::finish() {
+  if (drawn_) std::fprintf(stderr, "\n");
+  drawn_ = false;
+}
+
+}  // namespace gcmap::cli

@@ -1,0 +1,52 @@
+#include "gcmap/graph/backend.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include "gcmap/core/error.hpp"
+
+namespace gcmap {
+
+Device parse_device(const std::string& text, const std::string& key) {
+  if (text == "cpu") return Device::cpu;
+  if (text == "cuda") return Device::cuda;
+  if (text == "auto") return Device::automatic;
+  throw Error(key + ": expected cpu, cuda or auto, got '" + text + "'");
+}
+
+const char* device_name(Device device) {
+  switch (device) {
+    case Device::cpu: return "cpu";
+    case Device::cuda: return "cuda";
+    case Device::automatic: return "auto";
+  }
+  return "?";
+}
+
+void LinearizationBackend::overlaps(const std::shared_ptr<const PointCloud>& source,
+                                    std::span<const std::shared_ptr<const GaussianVoxelMap>> targets,
+                                    std::span<const Eigen::Isometry3d> T_target_source, std::span<double> out) {
+  tbb::parallel_for(size_t{0}, targets.size(), [&](size_t k) { out[k] = overlap(*source, *targets[k], T_target_source[k]); });
+}
+
+void CpuBackend::linearize(std::span<Factor* const> factors, std::span<const FactorPoses> poses,
+                           std::span<FactorLinearization> out) {
+  tbb::parallel_for(size_t{0}, factors.size(), [&](size_t f) { factors[f]->linearize(poses[f].data(), out[f]); });
+}
+
+void CpuBackend::trial_errors(std::span<Factor* const> factors, std::span<const FactorPoses> poses,
+                              std::span<double> out) {
+  tbb::parallel_for(size_t{0}, factors.size(), [&](size_t f) { out[f] = factors[f]->trial_error(poses[f].data()); });
+}
+
+std::vector<TargetOverlap> overlapping_targets(LinearizationBackend& backend, const std::shared_ptr<const PointCloud>& source,
+                                               std::span<const std::shared_ptr<const GaussianVoxelMap>> targets,
+                                               std::span<const Eigen::Isometry3d> T_target_source, double min_overlap) {
+  std::vector<double> overlaps(targets.size());
+  backend.overlaps(source, targets, T_target_source, overlaps);
+  std::vector<TargetOverlap> kept;
+  for (size_t k = 0; k < targets.size(); ++k)
+    if (overlaps[k] >= min_overlap) kept.push_back({static_cast<int>(k), overlaps[k]});
+  return kept;
+}
+
+}  // namespace gcmap

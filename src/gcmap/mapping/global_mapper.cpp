@@ -1,0 +1,170 @@
+#include "gcmap/mapping/global_mapper.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include "gcmap/mapping/loop_closure.hpp"
+#include "gcmap/registration/gicp.hpp"
+#include "gcmap/registration/registration.hpp"
+#include "gcmap/registration/vgicp.hpp"
+
+namespace gcmap {
+
+const char* to_string(FactorKind kind) {
+  switch (kind) {
+    case FactorKind::matching_cost: return "matching_cost";
+    case FactorKind::odometry: return "odometry";
+    case FactorKind::se3: return "se3";
+    case FactorKind::loop: return "loop";
+  }
+  return "?";
+}
+
+namespace {
+LMConfig lm_config(int iterations, double relative_error_tol = LMConfig{}.relative_error_tol) {
+  LMConfig c;
+  c.max_iterations = iterations;
+  c.relative_error_tol = relative_error_tol;
+  return c;
+}
+}  // namespace
+
+GlobalMapper::GlobalMapper(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend)
+    : config_(config),
+      backend_(std::move(backend)),
+      lm_(lm_config(config.global.max_iterations, config.global.relative_error_tol), backend_) {}
+
+void GlobalMapper::add_factor(GlobalFactor f) {
+  // An explicit loop leaves its target open to the matching-cost factor of the implicit closure.
+  if (f.kind != FactorKind::loop) connected_[f.target] = 1;
+  factors_.push_back(std::move(f));
+}
+
+FactorGraph GlobalMapper::graph() const {
+  FactorGraph g;
+  for (const GlobalFactor& f : factors_) g.add(f.factor);
+  return g;
+}
+
+void GlobalMapper::insert(Submap s, LoopDetector* loops) {
+  const int id = s.id;
+  if (id == 0) {
+    values_[0] = Eigen::Isometry3d::Identity();
+  } else {
+    const Submap& prev = submaps_.back();
+    values_[id] = values_.at(prev.id) * (prev.T_odom.inverse() * s.T_odom);
+  }
+  submaps_.push_back(std::move(s));
+  const Submap& cur = submaps_.back();
+  if (id == 0) {
+    stats_.per_submap.push_back({1, 0, 0.0, 0});
+    return;
+  }
+
+  Stopwatch w;
+  const int first = config_.global.mode == GlobalMode::sliding_window ? std::max(0, id - config_.global.window) : 0;
+  connected_.assign(id, 0);
+  if (connect_overlapping(id, first) == 0) {
+    // Only where the submap would otherwise be disconnected.
+    const Submap& prev = submaps_[id - 1];
+    Matrix6d info = Matrix6d::Identity();
+    info.diagonal() << 1e4, 1e4, 1e4, 1e3, 1e3, 1e3;
+    add_factor({FactorKind::odometry, id, id - 1, 0.0,
+                std::make_shared<RelativePoseFactor>(id - 1, id, prev.T_odom.inverse() * cur.T_odom, info)});
+  }
+  stats_.factors.add(w.lap_ms());
+  std::optional<LoopRecord> loop;
+  if (loops && config_.loop.enabled && config_.global.mode == GlobalMode::full) loop = loops->detect(id, submaps_);
+  if (loop) add_factor({FactorKind::loop, id, loop->target, 0.0, make_loop_factor(loop->target, id, loop->T_target_source, config_.loop)});
+  w.lap_ms();  // loop time is counted in its own statistics
+  // A verified loop says the estimate was off where it closes, so the revisit factors made at that
+  // estimate may sit in a wrong minimum: the loop first steers without them.
+  int iterations = 0;
+  if (loop) iterations += lm_.optimize(without_revisit_factors(), values_, {0}).iterations;
+  iterations += lm_.optimize(graph(), values_, {0}).iterations;
+  double opt_ms = w.lap_ms();
+  if (loop) {
+    // The implicit loop closure: the corrected estimate now overlaps submaps it missed before.
+    const int added = connect_overlapping(id, first);
+    stats_.factors.add(w.lap_ms());
+    if (added) iterations += lm_.optimize(graph(), values_, {0}).iterations;
+    opt_ms += w.lap_ms();
+  }
+  stats_.optimization.add(opt_ms);
+  stats_.per_submap.push_back({id + 1, static_cast<int>(factors_.size()), opt_ms, iterations});
+}
+
+FactorGraph GlobalMapper::without_revisit_factors() const {
+  const auto revisit = [&](const GlobalFactor& f) {
+    return f.kind != FactorKind::loop && f.kind != FactorKind::odometry && std::abs(f.source - f.target) > config_.loop.exclude_recent;
+  };
+  FactorGraph steer;
+  std::vector<char> constrained(submaps_.size(), 0);
+  for (const GlobalFactor& f : factors_) {
+    if (revisit(f)) continue;
+    steer.add(f.factor);
+    constrained[f.source] = constrained[f.target] = 1;
+  }
+  // A submap held only by revisit factors keeps them (LM needs every pose constrained).
+  for (const GlobalFactor& f : factors_)
+    if (revisit(f) && (!constrained[f.source] || !constrained[f.target])) steer.add(f.factor);
+  return steer;
+}
+
+int GlobalMapper::connect_overlapping(int id, int first) {
+  const Submap& cur = submaps_[id];
+  std::vector<int> candidates;
+  std::vector<std::shared_ptr<const GaussianVoxelMap>> targets;
+  std::vector<Eigen::Isometry3d> T_target_source;
+  for (int j = first; j < id; ++j) {
+    if (connected_[j]) continue;
+    candidates.push_back(j);
+    targets.push_back(submaps_[j].voxels);
+    T_target_source.push_back(values_.at(j).inverse() * values_.at(id));
+  }
+  const std::vector<TargetOverlap> kept = overlapping_targets(*backend_, cur.factor_source, targets, T_target_source, config_.global.th_min);
+  for (const TargetOverlap& t : kept) {
+    const int j = candidates[t.index];
+    if (config_.global.factor == FactorSource::se3) {
+      // Ablation "Proposed (SE3)": a relative-pose constraint from kNN GICP scan matching with the
+      // Hessian as information and a Huber kernel.
+      const GicpTarget target(submaps_[j].cloud);
+      const RegistrationResult r = align_gicp(*cur.cloud, target, values_.at(j).inverse() * values_.at(id));
+      add_factor({FactorKind::se3, id, j, t.overlap,
+                  std::make_shared<RelativePoseFactor>(j, id, r.T_target_source, r.H, RobustKernel::huber(10.0))});
+    } else {
+      add_factor({FactorKind::matching_cost, id, j, t.overlap,
+                  std::make_shared<MatchingCostFactor>(id, j, cur.factor_source, submaps_[j].voxels)});
+    }
+  }
+  return static_cast<int>(kept.size());
+}
+
+void GlobalMapper::optimize_final(std::optional<int> max_iterations) {
+  const int iterations = max_iterations ? std::min(*max_iterations, config_.global.final_iterations) : config_.global.final_iterations;
+  if (factors_.empty() || iterations <= 0) return;
+  LevenbergMarquardt final_lm(lm_config(iterations), backend_);
+  Stopwatch w;
+  stats_.final_iterations = final_lm.optimize(graph(), values_, {0}).iterations;
+  stats_.final_optimization_ms = w.ms();
+  stats_.optimization.add(stats_.final_optimization_ms);
+}
+
+std::vector<FactorEvaluation> GlobalMapper::evaluate_factors() const {
+  std::vector<FactorEvaluation> out(factors_.size());
+  tbb::parallel_for(size_t{0}, factors_.size(), [&](size_t f) {
+    const Factor& factor = *factors_[f].factor;
+    const Eigen::Isometry3d* poses[2] = {&values_.at(factor.keys()[0]), &values_.at(factor.keys()[1])};
+    if (const auto* m = dynamic_cast<const MatchingCostFactor*>(&factor)) {
+      out[f].error = evaluate_vgicp(m->source(), m->target(), poses[1]->inverse() * *poses[0]).error;
+    } else if (const auto* r = dynamic_cast<const RelativePoseFactor*>(&factor)) {
+      RelativePoseFactor copy = *r;  // linearize() records the robust weight in the factor
+      FactorLinearization lin;
+      copy.linearize(poses, lin);
+      out[f].error = lin.error;
+      out[f].weight = copy.weight();
+    }
+  });
+  return out;
+}
+
+}  // namespace gcmap

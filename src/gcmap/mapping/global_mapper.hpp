@@ -1,0 +1,85 @@
+#pragma once
+// Global mapping (paper Section III-B): each new submap gets a matching-cost factor to every past
+// submap it overlaps; LM re-linearizes every factor each iteration, warm-started per insertion.
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "gcmap/core/timer.hpp"
+#include "gcmap/graph/levenberg_marquardt.hpp"
+#include "gcmap/mapping/config.hpp"
+#include "gcmap/mapping/loop_detector.hpp"
+#include "gcmap/mapping/submap.hpp"
+
+namespace gcmap {
+
+// matching_cost: VGICP between two submaps (the paper); odometry: a relative pose where a submap
+// would otherwise be disconnected; se3: the ablation's scan-matching relative pose; loop: explicit.
+enum class FactorKind { matching_cost, odometry, se3, loop };
+const char* to_string(FactorKind kind);
+
+// One factor of the global graph and what is known of it.
+struct GlobalFactor {
+  FactorKind kind = FactorKind::matching_cost;
+  int source = 0, target = 0;  // submaps
+  double overlap = 0.0;        // at creation (matching_cost and se3)
+  std::shared_ptr<Factor> factor;
+};
+
+// A factor's state at the current estimate.
+struct FactorEvaluation {
+  double error = 0.0;
+  double weight = 1.0;  // robust-kernel weight (relative-pose factors)
+};
+
+struct GlobalMappingStats {
+  TimingStats factors, optimization;
+  struct PerSubmap {
+    int num_submaps, num_factors;
+    double global_optimization_ms;
+    int global_iterations;  // LM iterations of this insertion, over all its optimize calls
+  };
+  std::vector<PerSubmap> per_submap;
+  double final_optimization_ms = 0.0;  // also one sample of optimization
+  int final_iterations = 0;
+};
+
+class GlobalMapper {
+ public:
+  GlobalMapper(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend);
+
+  // Inserts the next submap (ids in order), connects and optimizes it; `loops` (may be null) is
+  // asked for an explicit loop in full mode.
+  void insert(Submap submap, LoopDetector* loops);
+  // The final optimization, to a 1e-6 relative tolerance, of at most global.final_iterations
+  // (or max_iterations when given; 0 skips it).
+  void optimize_final(std::optional<int> max_iterations = std::nullopt);
+
+  const std::vector<Submap>& submaps() const { return submaps_; }
+  const Eigen::Isometry3d& pose(int id) const { return values_.at(id); }
+  const std::vector<GlobalFactor>& factors() const { return factors_; }
+  // Error and weight of every factor at the current poses (in factors() order).
+  std::vector<FactorEvaluation> evaluate_factors() const;
+  const GlobalMappingStats& stats() const { return stats_; }
+
+ private:
+  void add_factor(GlobalFactor f);
+  FactorGraph graph() const;
+  // Matching-cost (or se3) factors from submap id to every past submap in [first, id) not yet
+  // connected whose overlap reaches global.th_min; returns how many were added.
+  int connect_overlapping(int id, int first);
+  // The graph without matching-cost factors between submaps more than loop.exclude_recent apart
+  // (kept where a submap has nothing else).
+  FactorGraph without_revisit_factors() const;
+
+  MappingConfig config_;
+  std::shared_ptr<LinearizationBackend> backend_;
+  std::vector<Submap> submaps_;
+  std::vector<GlobalFactor> factors_;
+  std::vector<char> connected_;   // per past submap: has a factor from the submap being inserted
+  Values values_;
+  LevenbergMarquardt lm_;
+  GlobalMappingStats stats_;
+};
+
+}  // namespace gcmap

@@ -1,0 +1,211 @@
+#include "gcmap/mapping/pipeline.hpp"
+
+#include <spdlog/spdlog.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_pipeline.h>
+
+#include <cmath>
+
+#include "gcmap/core/error.hpp"
+#include "gcmap/core/se3.hpp"
+#include "gcmap/mapping/preprocess_scan.hpp"
+
+namespace gcmap {
+
+namespace {
+
+// KITTI's HDL-64 scans need a 0.22 deg intrinsic elevation correction (as in CT-ICP/KISS-ICP).
+void kitti_vertical_correction(PointCloud& c) {
+  const double angle = 0.22 * M_PI / 180.0;
+  for (auto& p : c.points) {
+    const Eigen::Vector3d v = p.cast<double>();
+    const Eigen::Vector3d axis = v.cross(Eigen::Vector3d::UnitZ());
+    if (axis.norm() < 1e-9) continue;
+    p = (Eigen::AngleAxisd(angle, axis.normalized()) * v).cast<float>();
+  }
+}
+
+// SemanticKITTI moving classes (252-259, lower 16 bits of the label).
+void remove_moving_labels(PointCloud& c) {
+  std::vector<char> keep(c.size());
+  for (size_t i = 0; i < c.size(); ++i) {
+    const uint32_t cls = c.labels[i] & 0xffff;
+    keep[i] = !(cls >= 252 && cls <= 259);
+  }
+  c.filter(keep);
+}
+
+// Moves every point, fired at its own time t, into the frame of the sensor at t = 0, for a sensor
+// moving with the constant body-frame twist xi (per second): T_0_t = exp(t xi).
+void deskew(PointCloud& c, const Vector6d& xi) {
+  tbb::parallel_for(size_t{0}, c.size(), [&](size_t i) {
+    const Eigen::Isometry3d T = se3_exp(static_cast<double>(c.times[i]) * xi);
+    c.points[i] = (T * c.points[i].cast<double>()).cast<float>();
+    if (c.has_covs()) {
+      const Eigen::Matrix3f R = T.linear().cast<float>();
+      c.covs[i] = R * c.covs[i] * R.transpose();
+    }
+  });
+}
+
+}  // namespace
+
+MappingPipeline::MappingPipeline(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend,
+                                 PipelineOptions options)
+    : config_(config),
+      backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
+      options_(options),
+      odometry_(config.odometry),
+      mapper_(config, backend_) {}
+
+PreparedScan MappingPipeline::prepare(PointCloud raw, double stamp) const {
+  Stopwatch w;
+  PreparedScan out;
+  out.stamp = stamp;
+  if (raw.has_times() && raw.times.size() != raw.size()) {
+    spdlog::warn("scan at {:.6f} s: {} point times for {} points, ignored", stamp, raw.times.size(), raw.size());
+    raw.times.clear();
+  }
+  if (raw.has_labels() && raw.labels.size() != raw.size()) {
+    spdlog::warn("scan at {:.6f} s: {} labels for {} points, ignored", stamp, raw.labels.size(), raw.size());
+    raw.labels.clear();
+  }
+  if (config_.preprocess.remove_dynamic_labels && raw.has_labels()) remove_moving_labels(raw);
+  raw.labels.clear();  // not averaged per voxel: nothing downstream reads them
+  if (options_.kitti_hdl64 && config_.preprocess.kitti_vertical_correction) kitti_vertical_correction(raw);
+  // Range filtering drops NaN points too; what is left of a NaN-only scan is empty (unusable).
+  out.cloud = std::make_shared<PointCloud>(preprocess_scan(raw, config_.preprocess));
+  out.preprocess_ms = w.ms();
+  return out;
+}
+
+Frame MappingPipeline::add_scan(PointCloud scan, double stamp, std::optional<Eigen::Isometry3d> T_odom) {
+  if (finished_) throw Error("add_scan: the pipeline is finished");
+  if (!std::isfinite(stamp)) throw Error("add_scan: the stamp is not a finite number");
+  return add_prepared(prepare(std::move(scan), stamp), T_odom);
+}
+
+Eigen::Isometry3d MappingPipeline::track(const std::shared_ptr<PointCloud>& cloud, double stamp,
+                                         const std::optional<Eigen::Isometry3d>& T_odom, bool* deskewed) {
+  const size_t n = odometry_poses_.size();
+  const double dt = n ? stamp - stamps_[n - 1] : 0.0;
+  const bool timed = cloud && cloud->has_times() && config_.preprocess.deskew && dt > 1e-6;
+  if (T_odom) {
+    if (timed) {
+      deskew(*cloud, se3_log(odometry_poses_[n - 1].inverse() * *T_odom) / dt);
+      *deskewed = true;
+    }
+    odometry_.set_pose(*T_odom);
+    return *T_odom;
+  }
+  if (!timed || !odometry_.has_model() || cloud->size() < 100 || !cloud->has_covs()) return odometry_.track(cloud);
+  // The motion over the interval that ends at this scan stands for the motion within its sweep:
+  // first the prediction, then the motion to where the deskewed scan registered. Deskewing with a
+  // stale velocity alone feeds its error back into the next velocity.
+  const PointCloud raw = *cloud;
+  const Eigen::Isometry3d prev = odometry_poses_[n - 1];
+  Eigen::Isometry3d T = odometry_.predict();
+  for (int pass = 0; pass < 2; ++pass) {
+    *cloud = raw;
+    deskew(*cloud, se3_log(prev.inverse() * T) / dt);
+    T = odometry_.estimate(*cloud, T);
+  }
+  odometry_.accept(cloud, T);
+  *deskewed = true;
+  return T;
+}
+
+Frame MappingPipeline::add_prepared(PreparedScan scan, std::optional<Eigen::Isometry3d> T_odom) {
+  if (finished_) throw Error("add_scan: the pipeline is finished");
+  if (!stamps_.empty() && scan.stamp < stamps_.back())
+    throw Error("add_scan: stamp " + std::to_string(scan.stamp) + " s is before the previous scan's " +
+                std::to_string(stamps_.back()) + " s");
+  Frame f;
+  f.index = static_cast<int>(stamps_.size());
+  f.stamp = scan.stamp;
+  if (!scan.cloud) {
+    spdlog::warn("skipping scan {}: {}", f.index, scan.error);
+    ++unusable_;
+  }
+  preprocess_ms_.add(scan.preprocess_ms);
+  Stopwatch w;
+  f.T_odom = track(scan.cloud, scan.stamp, T_odom, &f.deskewed);
+  odometry_ms_.add(w.lap_ms());
+  stamps_.push_back(scan.stamp);
+  odometry_poses_.push_back(f.T_odom);
+  f.points = scan.cloud ? scan.cloud->size() : 0;
+  f.status = mapper_.add_frame(f.index, scan.cloud, f.T_odom);
+  if (f.status == FrameStatus::unusable && scan.cloud) ++unusable_;
+  statuses_.push_back(f.status);
+  f.T_world_frame = mapper_.frame_pose(f.index);
+  return f;
+}
+
+void MappingPipeline::finish(std::optional<int> max_final_iterations) {
+  if (finished_) return;
+  mapper_.finish(max_final_iterations);
+  finished_ = true;
+  seconds_ = clock_.ms() / 1000.0;
+}
+
+PipelineStats MappingPipeline::stats() const {
+  PipelineStats s;
+  s.frames = stamps_.size();
+  s.unusable = unusable_;
+  s.preprocess = preprocess_ms_;
+  s.odometry = odometry_ms_;
+  s.mapper = mapper_.stats();
+  s.seconds = finished_ ? seconds_ : clock_.ms() / 1000.0;
+  return s;
+}
+
+size_t MappingPipeline::run(ScanSource& source, const RunOptions& options) {
+  struct Item {
+    int frame = 0;
+    ScanRecord record;
+    PreparedScan prepared;
+  };
+  int next = 0;
+  size_t added = 0;
+  bool ended = false;
+  // The mapping stage alone cannot keep both cores busy (its LM solve, assembly and voxel-map
+  // inserts are serial), so scans are loaded and prepared ahead, up to 3 in flight.
+  tbb::parallel_pipeline(
+      3,
+      tbb::make_filter<void, Item>(tbb::filter_mode::serial_in_order,
+                                   [&](tbb::flow_control& fc) {
+                                     Item item;
+                                     std::optional<ScanRecord> r;
+                                     if (!ended && !(options.stop && options.stop->load())) r = source.next();
+                                     if (!r) {
+                                       ended = true;
+                                       fc.stop();
+                                       return item;
+                                     }
+                                     item.frame = next++;
+                                     item.record = std::move(*r);
+                                     return item;
+                                   }) &
+          tbb::make_filter<Item, Item>(tbb::filter_mode::parallel,
+                                       [&](Item item) {
+                                         Stopwatch w;
+                                         try {
+                                           item.prepared = prepare(item.record.load(), item.record.stamp);
+                                         } catch (const Error& e) {
+                                           item.prepared.stamp = item.record.stamp;
+                                           item.prepared.error = e.what();
+                                           item.prepared.preprocess_ms = w.ms();
+                                         }
+                                         return item;
+                                       }) &
+          tbb::make_filter<Item, void>(tbb::filter_mode::serial_in_order, [&](Item item) {
+            std::optional<Eigen::Isometry3d> guess;
+            if (options.initial_pose) guess = options.initial_pose(item.frame);
+            const Frame f = add_prepared(std::move(item.prepared), guess);
+            ++added;
+            if (options.on_frame) options.on_frame(f);
+          }));
+  return added;
+}
+
+}  // namespace gcmap

@@ -1,0 +1,112 @@
+#pragma once
+// The whole mapping system as a library, scan by scan: preprocessing (corrections, label-based
+// removal, downsampling, covariances, motion compensation), odometry or a given initial
+// trajectory, and the Mapper. The CLI, the Python package and any other front end drive this.
+#include <atomic>
+#include <functional>
+#include <memory>
+#include <optional>
+
+#include "gcmap/core/scan_source.hpp"
+#include "gcmap/mapping/mapper.hpp"
+#include "gcmap/mapping/odometry.hpp"
+
+namespace gcmap {
+
+struct PipelineOptions {
+  // The scans are KITTI's HDL-64 recordings: the 0.22 deg elevation correction applies (when
+  // preprocess.kitti_vertical_correction is on).
+  bool kitti_hdl64 = false;
+};
+
+// One scan's outcome.
+struct Frame {
+  int index = 0;
+  double stamp = 0.0;
+  FrameStatus status = FrameStatus::unusable;
+  // Current estimate, frame 0 the identity; later insertions and the final optimization move it.
+  Eigen::Isometry3d T_world_frame = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_odom = Eigen::Isometry3d::Identity();  // odometry, or the given guess
+  size_t points = 0;    // after preprocessing
+  bool deskewed = false;
+};
+
+struct PipelineStats {
+  size_t frames = 0, unusable = 0;
+  TimingStats preprocess, odometry;  // preprocess overlaps the other stages in run()
+  MapperStats mapper;
+  double seconds = 0.0;  // from construction to finish()
+};
+
+// A raw scan turned into what odometry and mapping take; made by prepare() on any thread.
+struct PreparedScan {
+  std::shared_ptr<PointCloud> cloud;  // null: unusable (see error)
+  double stamp = 0.0;
+  double preprocess_ms = 0.0;
+  std::string error;
+};
+
+class MappingPipeline {
+ public:
+  // backend: where factors are linearized (default: the CPU). Throws Error naming a bad config key.
+  explicit MappingPipeline(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend = nullptr,
+                           PipelineOptions options = {});
+
+  // One scan in the sensor frame, stamps non-decreasing. scan.times, when present, are per-point
+  // times in seconds relative to `stamp` and drive motion compensation (preprocess.deskew).
+  // T_odom: an external odometry pose (e.g. from a prior trajectory) used instead of scan matching.
+  // An empty, NaN-only or too small scan is no error: its frame is unusable and placed by the
+  // motion model. Throws Error for a stamp going backwards or a scan after finish().
+  Frame add_scan(PointCloud scan, double stamp, std::optional<Eigen::Isometry3d> T_odom = std::nullopt);
+  // The two halves of add_scan: prepare() is const and thread-safe, add_prepared() takes frames in order.
+  PreparedScan prepare(PointCloud scan, double stamp) const;
+  Frame add_prepared(PreparedScan scan, std::optional<Eigen::Isometry3d> T_odom = std::nullopt);
+  // Closes the open submap and runs the final optimization (at most max_final_iterations when
+  // given, 0 skips it: for an interrupted run); add_scan is refused afterwards.
+  void finish(std::optional<int> max_final_iterations = std::nullopt);
+  bool finished() const { return finished_; }
+
+  struct RunOptions {
+    std::function<std::optional<Eigen::Isometry3d>(int frame)> initial_pose;  // external odometry
+    std::function<void(const Frame&)> on_frame;                              // after each frame
+    const std::atomic<bool>* stop = nullptr;  // when set, no further scan is read
+  };
+  // Feeds every scan of the source through add_prepared, loading and preparing up to 3 ahead in
+  // parallel with the mapping of earlier frames. Does not finish(). Returns the frames added.
+  size_t run(ScanSource& source, const RunOptions& options);
+
+  const MappingConfig& config() const { return config_; }
+  const LinearizationBackend& backend() const { return *backend_; }
+  size_t num_frames() const { return stamps_.size(); }
+  const std::vector<double>& stamps() const { return stamps_; }
+  const std::vector<FrameStatus>& statuses() const { return statuses_; }
+  std::vector<Eigen::Isometry3d> trajectory() const { return mapper_.trajectory(); }
+  const std::vector<Eigen::Isometry3d>& odometry() const { return odometry_poses_; }
+  const std::vector<Submap>& submaps() const { return mapper_.submaps(); }
+  const Mapper& mapper() const { return mapper_; }
+  const std::vector<GlobalFactor>& factors() const { return mapper_.factors(); }
+  const std::vector<LoopRecord>& loops() const { return mapper_.loops(); }
+  PipelineStats stats() const;
+  // Every submap in the output frame (frame 0 the identity), voxel-downsampled.
+  PointCloud map(double resolution) const { return mapper_.assemble_map(resolution); }
+
+ private:
+  Eigen::Isometry3d track(const std::shared_ptr<PointCloud>& cloud, double stamp,
+                          const std::optional<Eigen::Isometry3d>& T_odom, bool* deskewed);
+
+  MappingConfig config_;
+  std::shared_ptr<LinearizationBackend> backend_;
+  PipelineOptions options_;
+  Odometry odometry_;
+  Mapper mapper_;
+  std::vector<double> stamps_;
+  std::vector<FrameStatus> statuses_;
+  std::vector<Eigen::Isometry3d> odometry_poses_;
+  size_t unusable_ = 0;
+  TimingStats preprocess_ms_, odometry_ms_;
+  Stopwatch clock_;
+  double seconds_ = 0.0;
+  bool finished_ = false;
+};
+
+}  // namespace gcmap

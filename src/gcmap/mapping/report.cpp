@@ -1,0 +1,102 @@
+#include "gcmap/mapping/report.hpp"
+
+namespace gcmap {
+
+namespace {
+
+Json timing_json(const TimingStats& t) {
+  Json j = Json::object();
+  j["mean_ms"] = t.mean();
+  j["std_ms"] = t.stddev();
+  j["max_ms"] = t.max();
+  j["count"] = t.samples_ms.size();
+  return j;
+}
+
+Json submaps_json(const Mapper& mapper, int frame_offset) {
+  Json submaps = Json::array();
+  const Eigen::Isometry3d T_out_world = mapper.output_from_world();
+  for (const Submap& s : mapper.submaps()) {
+    Json j = Json::object();
+    j["id"] = s.id;
+    j["pose"] = pose_json(T_out_world * mapper.submap_pose(s.id));
+    j["first_frame"] = s.keyframes.front() + frame_offset;
+    j["last_frame"] = s.keyframes.back() + frame_offset;
+    j["keyframes"] = s.keyframes.size();
+    j["points"] = s.cloud->size();
+    submaps.push_back(j);
+  }
+  return submaps;
+}
+
+}  // namespace
+
+Json graph_json(const MappingPipeline& pipeline, int frame_offset) {
+  const Mapper& mapper = pipeline.mapper();
+  Json graph = Json::object();
+  graph["submaps"] = submaps_json(mapper, frame_offset);
+  Json factors = Json::array();
+  const std::vector<FactorEvaluation> evaluation = mapper.evaluate_factors();
+  for (size_t f = 0; f < mapper.factors().size(); ++f) {
+    const GlobalFactor& fi = mapper.factors()[f];
+    Json j = Json::object();
+    j["type"] = to_string(fi.kind);
+    j["source"] = fi.source;
+    j["target"] = fi.target;
+    j["overlap"] = fi.overlap;
+    j["final_error"] = evaluation[f].error;
+    if (fi.kind != FactorKind::matching_cost) j["final_weight"] = evaluation[f].weight;
+    j["explicit_loop"] = fi.kind == FactorKind::loop;
+    factors.push_back(j);
+  }
+  graph["factors"] = factors;
+  Json loops = Json::array();  // every verified candidate, accepted or not
+  for (const LoopRecord& l : mapper.loops()) {
+    Json j = Json::object();
+    j["source"] = l.source;
+    j["target"] = l.target;
+    j["descriptor_distance"] = l.descriptor_distance;
+    j["inlier_fraction"] = l.inlier_fraction;
+    j["inlier_rmse"] = l.inlier_rmse;
+    j["accepted"] = l.accepted;
+    loops.push_back(j);
+  }
+  graph["loop_candidates"] = loops;
+  return graph;
+}
+
+Json stats_json(const MappingPipeline& pipeline) {
+  const PipelineStats ps = pipeline.stats();
+  const MapperStats& ms = ps.mapper;
+  Json stats = Json::object();
+  stats["frames"] = ps.frames;
+  stats["unusable_scans"] = ps.unusable;
+  stats["seconds"] = ps.seconds;
+  stats["frames_per_second"] = ps.seconds > 0 ? ps.frames / ps.seconds : 0.0;
+  stats["device"] = pipeline.backend().name();
+  Json timing = Json::object();
+  timing["preprocess"] = timing_json(ps.preprocess);
+  timing["odometry"] = timing_json(ps.odometry);
+  timing["local_factor_creation"] = timing_json(ms.local.factors);
+  timing["local_optimization"] = timing_json(ms.local.optimization);
+  timing["global_factor_creation"] = timing_json(ms.global.factors);
+  timing["global_optimization"] = timing_json(ms.global.optimization);
+  timing["loop_detection"] = timing_json(ms.loop.detection);
+  timing["loop_verification"] = timing_json(ms.loop.verification);
+  stats["timing"] = timing;
+  Json per = Json::array();
+  for (const auto& p : ms.global.per_submap) {
+    Json j = Json::object();
+    j["submaps"] = p.num_submaps;
+    j["factors"] = p.num_factors;
+    j["global_optimization_ms"] = p.global_optimization_ms;
+    j["global_iterations"] = p.global_iterations;
+    per.push_back(j);
+  }
+  stats["per_submap"] = per;
+  stats["final_optimization_ms"] = ms.global.final_optimization_ms;
+  stats["final_iterations"] = ms.global.final_iterations;
+  return stats;
+}
+
+}  // namespace gcmap

@@ -1,0 +1,17 @@
+#pragma once
+// The machine-readable record of a mapping run (graph.json, stats.json), built in one place for the
+// CLI, the Python package and sessions.
+#include "gcmap/io/json.hpp"
+#include "gcmap/mapping/pipeline.hpp"
+
+namespace gcmap {
+
+// Submaps (pose in the output frame, frames, points), every factor with its final error and
+// robust weight, every verified loop candidate. frame_offset is added to frame numbers (--start).
+Json graph_json(const MappingPipeline& pipeline, int frame_offset = 0);
+
+// Frames, rate, device and per-module timings (paper Table III), the global optimization per
+// insertion (paper Fig. 10) and the final optimization.
+Json stats_json(const MappingPipeline& pipeline);
+
+}  // namespace gcmap

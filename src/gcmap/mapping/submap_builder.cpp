@@ -1,0 +1,122 @@
+#include "gcmap/mapping/submap_builder.hpp"
+
+#include "gcmap/core/preprocess.hpp"
+#include "gcmap/graph/levenberg_marquardt.hpp"
+#include "gcmap/registration/vgicp.hpp"
+
+namespace gcmap {
+
+const char* to_string(FrameStatus status) {
+  switch (status) {
+    case FrameStatus::keyframe: return "keyframe";
+    case FrameStatus::skipped: return "skipped";
+    case FrameStatus::unusable: return "unusable";
+  }
+  return "?";
+}
+
+PointCloud evenly_subsampled(PointCloud cloud, int n) {
+  if (static_cast<int>(cloud.size()) <= n) return cloud;
+  std::vector<char> keep(cloud.size(), 0);
+  const double stride = static_cast<double>(cloud.size()) / n;
+  for (int i = 0; i < n; ++i) keep[static_cast<size_t>(i * stride)] = 1;
+  cloud.filter(keep);
+  return cloud;
+}
+
+SubmapBuilder::SubmapBuilder(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend)
+    : config_(config), backend_(std::move(backend)) {}
+
+SubmapBuilder::Result SubmapBuilder::add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud,
+                                               const Eigen::Isometry3d& T_odom) {
+  Result r;
+  r.anchor = last_keyframe_;
+  if (!cloud || cloud->size() < 100) return r;
+  if (!open_.empty()) {
+    const Keyframe& last = open_.back();
+    const double ov = overlap(*cloud, *last.voxels, last.T_odom.inverse() * T_odom);
+    if (ov > config_.local.th_max) {
+      r.status = FrameStatus::skipped;
+      return r;
+    }
+    // After a gap (dropped scans) the frame may not overlap the submap at all: it starts a new one
+    // rather than joining a local graph it has no factor into.
+    if (ov < config_.local.th_min) r.closed = close();
+  }
+  auto voxels = std::make_shared<GaussianVoxelMap>(config_.local.voxel_resolution);
+  voxels->insert(*cloud);
+  voxels->finalize();
+  ScanContext descriptor;
+  if (config_.loop.enabled) descriptor = make_scan_context(*cloud, config_.loop.scan_context);
+  open_.push_back({frame, T_odom, cloud, voxels, std::move(descriptor)});
+  r.status = FrameStatus::keyframe;
+  r.anchor = last_keyframe_ = frame;
+  if (open_.size() >= 2) {
+    const Keyframe& first = open_.front();
+    const double ov = overlap(*cloud, *first.voxels, first.T_odom.inverse() * T_odom);
+    if (ov < config_.local.th_min || static_cast<int>(open_.size()) >= config_.local.max_keyframes) r.closed = close();
+  }
+  return r;
+}
+
+std::vector<Eigen::Isometry3d> SubmapBuilder::optimize_keyframes(const Eigen::Isometry3d& T_odom_submap) {
+  const int n = static_cast<int>(open_.size());
+  Values local;
+  for (int k = 0; k < n; ++k) local[k] = T_odom_submap.inverse() * open_[k].T_odom;
+  if (n >= 2) {
+    // Fully connected: every keyframe pair gets a VGICP factor (source later, target earlier).
+    Stopwatch w;
+    FactorGraph g;
+    for (int b = 1; b < n; ++b) {
+      auto source = config_.local.factor_source_points > 0
+                        ? std::make_shared<const PointCloud>(evenly_subsampled(*open_[b].cloud, config_.local.factor_source_points))
+                        : open_[b].cloud;
+      for (int a = 0; a < b; ++a) g.add(std::make_shared<MatchingCostFactor>(b, a, source, open_[a].voxels));
+    }
+    stats_.factors.add(w.lap_ms());
+    LMConfig lc;
+    lc.max_iterations = config_.local.max_iterations;
+    lc.relative_error_tol = config_.local.relative_error_tol;
+    LevenbergMarquardt(lc, backend_).optimize(g, local, {0});
+    stats_.optimization.add(w.lap_ms());
+  }
+  std::vector<Eigen::Isometry3d> out;
+  for (int k = 0; k < n; ++k) out.push_back(local.at(k));
+  return out;
+}
+
+std::optional<Submap> SubmapBuilder::close() {
+  if (open_.empty()) return std::nullopt;
+  Submap s;
+  s.id = next_id_++;
+  s.T_odom = open_.front().T_odom;
+  s.T_submap_keyframe = optimize_keyframes(s.T_odom);
+  for (Keyframe& k : open_) {
+    s.keyframes.push_back(k.frame);
+    if (config_.loop.enabled) s.descriptors.push_back(std::move(k.descriptor));
+  }
+  s = merge(std::move(s));
+  open_.clear();
+  return s;
+}
+
+// Keyframe clouds in the submap frame, voxel-averaged means and covariances.
+Submap SubmapBuilder::merge(Submap s) const {
+  PointCloud merged;
+  for (size_t k = 0; k < open_.size(); ++k) {
+    const PointCloud c = transformed(*open_[k].cloud, s.T_submap_keyframe[k]);
+    merged.points.insert(merged.points.end(), c.points.begin(), c.points.end());
+    merged.covs.insert(merged.covs.end(), c.covs.begin(), c.covs.end());
+  }
+  merged = voxel_downsample(merged, config_.local.submap_downsample);
+  merged = evenly_subsampled(std::move(merged), config_.local.max_submap_points);
+  auto voxels = std::make_shared<GaussianVoxelMap>(config_.global.voxel_resolution);
+  voxels->insert(merged);
+  voxels->finalize();
+  s.factor_source = std::make_shared<const PointCloud>(evenly_subsampled(merged, config_.global.factor_source_points));
+  s.cloud = std::make_shared<const PointCloud>(std::move(merged));
+  s.voxels = voxels;
+  return s;
+}
+
+}  // namespace gcmap

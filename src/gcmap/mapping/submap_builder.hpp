@@ -1,0 +1,60 @@
+#pragma once
+// Local mapping (paper Section III-A): keyframes chosen by overlap, a fully connected VGICP graph
+// over a submap's keyframes, and their merge into one submap cloud.
+#include <memory>
+#include <optional>
+
+#include "gcmap/core/timer.hpp"
+#include "gcmap/graph/backend.hpp"
+#include "gcmap/mapping/config.hpp"
+#include "gcmap/mapping/submap.hpp"
+
+namespace gcmap {
+
+// What became of a frame: a keyframe of a submap, skipped (overlaps its predecessor above
+// local.th_max; placed from it) or unusable (empty or too few points; placed by odometry).
+enum class FrameStatus { keyframe, skipped, unusable };
+const char* to_string(FrameStatus status);
+
+struct LocalMappingStats {
+  TimingStats factors, optimization;  // per closed submap
+};
+
+class SubmapBuilder {
+ public:
+  SubmapBuilder(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend);
+
+  struct Result {
+    FrameStatus status = FrameStatus::unusable;
+    int anchor = -1;                // the keyframe (frame index) this frame is placed from; -1: none yet
+    std::optional<Submap> closed;   // a submap this frame completed
+  };
+  // Frames in order; a null or small cloud is unusable.
+  Result add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom);
+  // Closes the open submap, if any.
+  std::optional<Submap> close();
+
+  bool has_open_keyframes() const { return !open_.empty(); }
+  const LocalMappingStats& stats() const { return stats_; }
+
+ private:
+  struct Keyframe {
+    int frame;
+    Eigen::Isometry3d T_odom;
+    std::shared_ptr<const PointCloud> cloud;
+    std::shared_ptr<GaussianVoxelMap> voxels;  // local resolution, keyframe frame
+    ScanContext descriptor;                    // when explicit loops are on
+  };
+  // Keyframe poses in the submap frame, optimized with every keyframe pair as a factor.
+  std::vector<Eigen::Isometry3d> optimize_keyframes(const Eigen::Isometry3d& T_odom_submap);
+  Submap merge(Submap s) const;
+
+  MappingConfig config_;
+  std::shared_ptr<LinearizationBackend> backend_;
+  std::vector<Keyframe> open_;
+  int next_id_ = 0;
+  int last_keyframe_ = -1;
+  LocalMappingStats stats_;
+};
+
+}  // namespace gcmap
