@@ -68,7 +68,7 @@ void add_map(CLI::App& app, Runner& run) {
   cmd->add_option("--max-frames", opt->max_frames, "Process at most this many scans (0 = all)")->capture_default_str();
   cmd->add_flag("--quiet", opt->quiet, "No progress line");
   ov->add(cmd);
-  cmd->footer("Writes trajectory.kitti/.tum, odometry.kitti, map.ply, graph.json, stats.json, config.yaml.");
+  cmd->footer("Writes trajectory.kitti/.tum, odometry.kitti, map.ply, graph.json, stats.json, config.yaml and session/.");
   cmd->callback([opt, ov, &run] {
     run = [opt, ov] {
       const auto threads = limit_threads(ov->threads);
@@ -79,7 +79,7 @@ void add_map(CLI::App& app, Runner& run) {
                   r.submaps, r.factors, r.seconds, r.fps);
       std::fprintf(stderr, "%s %zu frames in %.1f s (%.1f frames/s): %zu submaps, %zu global factors.\n",
                    r.signal ? "Interrupted: mapped" : "Mapped", r.frames, r.seconds, r.fps, r.submaps, r.factors);
-      std::fprintf(stderr, "Wrote %s: trajectory.kitti and .tum (optimized poses), odometry.kitti, map.ply%s, graph.json, stats.json%s, config.yaml.\n",
+      std::fprintf(stderr, "Wrote %s: trajectory.kitti and .tum (optimized poses), odometry.kitti, map.ply%s, graph.json, stats.json%s, config.yaml, session/ (for localize and merge).\n",
                    opt->output.c_str(), opt->config.output.pcd ? " and map.pcd" : "", r.signal ? " (marked partial)" : "");
       return r.signal ? 128 + r.signal : 0;
     };

@@ -13,6 +13,7 @@
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/sequence.hpp"
+#include "gcmap/io/session.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "gcmap/mapping/pipeline.hpp"
 #include "gcmap/mapping/report.hpp"
@@ -89,6 +90,7 @@ void write_outputs(const MappingPipeline& pipeline, const FolderScanSource& sour
   if (signal) stats["interrupted_by"] = signal == SIGINT ? "SIGINT" : "SIGTERM";
   write_file_atomic((out / "stats.json").string(), [&](std::ostream& s) { s << stats.dump() << "\n"; });
   write_file_atomic((out / "config.yaml").string(), [&](std::ostream& s) { s << o.config.to_yaml(); });
+  write_session((out / "session").string(), pipeline, traj.stamps);
 }
 
 std::string progress_detail(const MappingPipeline& p) {

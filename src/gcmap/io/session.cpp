@@ -1,0 +1,296 @@
+#include "gcmap/io/session.hpp"
+
+#include <unistd.h>
+#include <yaml-cpp/yaml.h>
+
+#include <bit>
+#include <cstring>
+#include <filesystem>
+#include <sstream>
+
+#include "gcmap/core/error.hpp"
+#include "gcmap/core/preprocess.hpp"
+#include "gcmap/core/se3.hpp"
+#include "gcmap/io/file.hpp"
+#include "gcmap/io/trajectory_io.hpp"
+
+namespace gcmap {
+
+namespace fs = std::filesystem;
+static_assert(std::endian::native == std::endian::little, "the session format is little endian");
+
+namespace {
+
+constexpr char kMagic[8] = {'G', 'C', 'M', 'A', 'P', 'S', 'M', '1'};
+
+template <typename T>
+void put(std::string& out, T v) {
+  out.append(reinterpret_cast<const char*>(&v), sizeof(T));
+}
+void put_pose(std::string& out, const Eigen::Isometry3d& T) {
+  double v[7];
+  pose_to_xyz_quat(T, v);
+  out.append(reinterpret_cast<const char*>(v), sizeof v);
+}
+
+// Bounds-checked reading: every count is checked against the bytes left before allocating.
+class Reader {
+ public:
+  Reader(const std::string& bytes, std::string path) : bytes_(bytes), path_(std::move(path)) {}
+  template <typename T>
+  T get() {
+    T v;
+    std::memcpy(&v, take(sizeof(T)), sizeof(T));
+    return v;
+  }
+  Eigen::Isometry3d pose() {
+    double v[7];
+    std::memcpy(v, take(sizeof v), sizeof v);
+    for (double x : v)
+      if (!std::isfinite(x)) fail("a pose is not finite");
+    if (std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]) < 1e-6) fail("a pose has a zero quaternion");
+    return pose_from_xyz_quat(v);
+  }
+  // A count of records of `record_bytes` each that must fit in what is left.
+  uint32_t count(size_t record_bytes, const char* what) {
+    const uint32_t n = get<uint32_t>();
+    if (record_bytes && n > (bytes_.size() - pos_) / record_bytes)
+      fail(std::to_string(n) + " " + what + " do not fit in the " + std::to_string(bytes_.size() - pos_) + " bytes left");
+    return n;
+  }
+  // Fails unless n more bytes are left.
+  void need(uint64_t n, const std::string& what) {
+    if (n > bytes_.size() - pos_) fail(what + " do not fit in the " + std::to_string(bytes_.size() - pos_) + " bytes left");
+  }
+  template <typename T>
+  void array(T* out, size_t n) {
+    std::memcpy(out, take(n * sizeof(T)), n * sizeof(T));
+  }
+  bool done() const { return pos_ == bytes_.size(); }
+  [[noreturn]] void fail(const std::string& what) const {
+    throw Error(path_ + ": " + what + " (byte " + std::to_string(pos_) + ")");
+  }
+
+ private:
+  const char* take(size_t n) {
+    if (n > bytes_.size() - pos_) fail("truncated");
+    const char* p = bytes_.data() + pos_;
+    pos_ += n;
+    return p;
+  }
+  const std::string& bytes_;
+  std::string path_;
+  size_t pos_ = 0;
+};
+
+void put_submap(std::string& out, const Submap& s, const Eigen::Isometry3d& T_world_submap) {
+  put<int32_t>(out, s.id);
+  put_pose(out, T_world_submap);
+  put_pose(out, s.T_odom);
+  put<uint32_t>(out, static_cast<uint32_t>(s.keyframes.size()));
+  for (size_t k = 0; k < s.keyframes.size(); ++k) {
+    put<int32_t>(out, s.keyframes[k]);
+    put_pose(out, s.T_submap_keyframe[k]);
+  }
+  const bool descriptors = !s.descriptors.empty();
+  put<uint32_t>(out, descriptors ? s.descriptors[0].rings : 0);
+  put<uint32_t>(out, descriptors ? s.descriptors[0].sectors : 0);
+  for (const ScanContext& d : s.descriptors) {
+    out.append(reinterpret_cast<const char*>(d.cells.data()), d.cells.size() * sizeof(float));
+    out.append(reinterpret_cast<const char*>(d.ring_key.data()), d.ring_key.size() * sizeof(float));
+  }
+  const PointCloud& c = *s.cloud;
+  put<uint32_t>(out, static_cast<uint32_t>(c.size()));
+  for (const Eigen::Vector3f& p : c.points) out.append(reinterpret_cast<const char*>(p.data()), 3 * sizeof(float));
+  for (const Eigen::Matrix3f& m : c.covs) {
+    const float v[6] = {m(0, 0), m(0, 1), m(0, 2), m(1, 1), m(1, 2), m(2, 2)};
+    out.append(reinterpret_cast<const char*>(v), sizeof v);
+  }
+}
+
+Submap get_submap(Reader& in, Eigen::Isometry3d* T_world_submap) {
+  Submap s;
+  s.id = in.get<int32_t>();
+  *T_world_submap = in.pose();
+  s.T_odom = in.pose();
+  const uint32_t keyframes = in.count(4 + 56, "keyframes");
+  for (uint32_t k = 0; k < keyframes; ++k) {
+    s.keyframes.push_back(in.get<int32_t>());
+    s.T_submap_keyframe.push_back(in.pose());
+  }
+  const uint32_t rings = in.get<uint32_t>(), sectors = in.get<uint32_t>();
+  if (rings > 1000 || sectors > 10000) in.fail("implausible descriptor size " + std::to_string(rings) + " x " + std::to_string(sectors));
+  if (rings && sectors) {
+    in.need(uint64_t(keyframes) * (rings * sectors + rings) * sizeof(float), "descriptors");
+    for (uint32_t k = 0; k < keyframes; ++k) {
+      ScanContext d;
+      d.rings = static_cast<int>(rings);
+      d.sectors = static_cast<int>(sectors);
+      d.cells.resize(size_t(rings) * sectors);
+      d.ring_key.resize(rings);
+      in.array(d.cells.data(), d.cells.size());
+      in.array(d.ring_key.data(), d.ring_key.size());
+      s.descriptors.push_back(std::move(d));
+    }
+  }
+  auto cloud = std::make_shared<PointCloud>();
+  const uint32_t n = in.count(9 * sizeof(float), "points");
+  cloud->points.resize(n);
+  cloud->covs.resize(n);
+  for (auto& p : cloud->points) in.array(p.data(), 3);
+  for (auto& m : cloud->covs) {
+    float v[6];
+    in.array(v, 6);
+    m << v[0], v[1], v[2], v[1], v[3], v[4], v[2], v[4], v[5];
+  }
+  if (!cloud->points.empty() && remove_non_finite(*cloud) > 0) in.fail("submap " + std::to_string(s.id) + " has non-finite points");
+  s.cloud = std::move(cloud);
+  return s;
+}
+
+// What a run leaves besides the clouds, readable by people and by yaml-cpp.
+std::string manifest_yaml(const MappingPipeline& p) {
+  std::ostringstream m;
+  m << "format: gcmap-session\nversion: " << kSessionVersion << "\ncreated_by: gcmap " << GCMAP_VERSION
+    << "\nframes: " << p.num_frames() << "\nsubmaps: " << p.submaps().size() << "\nfactors:\n";
+  for (const GlobalFactor& f : p.factors())
+    m << "  - [" << to_string(f.kind) << ", " << f.source << ", " << f.target << ", " << f.overlap << "]\n";
+  return m.str();
+}
+
+FactorKind parse_factor_kind(const std::string& text, const std::string& path) {
+  for (FactorKind k : {FactorKind::matching_cost, FactorKind::odometry, FactorKind::se3, FactorKind::loop})
+    if (text == to_string(k)) return k;
+  throw Error(path + ": unknown factor kind '" + text + "'");
+}
+
+void read_manifest(const std::string& path, Session& s, size_t* frames, size_t* submaps) {
+  YAML::Node m;
+  try {
+    m = YAML::Load(read_file(path));
+    if (!m.IsMap() || m["format"].as<std::string>("") != "gcmap-session") throw Error(path + ": not a gcmap session manifest");
+    s.version = m["version"].as<int>();
+    if (s.version > kSessionVersion)
+      throw Error(path + ": session version " + std::to_string(s.version) + " is newer than this gcmap reads (" +
+                  std::to_string(kSessionVersion) + "): use a newer gcmap");
+    if (s.version < 1) throw Error(path + ": bad session version " + std::to_string(s.version));
+    s.created_by = m["created_by"].as<std::string>("");
+    *frames = m["frames"].as<size_t>();
+    *submaps = m["submaps"].as<size_t>();
+    for (const auto& f : m["factors"]) {
+      if (!f.IsSequence() || f.size() != 4) throw Error(path + ": a factor must be [kind, source, target, overlap]");
+      s.factors.push_back({parse_factor_kind(f[0].as<std::string>(), path), f[1].as<int>(), f[2].as<int>(), f[3].as<double>()});
+    }
+  } catch (const YAML::Exception& e) {
+    throw Error(path + ": unreadable manifest (" + std::string(e.what()) + ")");
+  }
+}
+
+// Voxel maps and factor sources, as the run that wrote the session made them.
+void rebuild(Submap& s, const MappingConfig& config) {
+  auto voxels = std::make_shared<GaussianVoxelMap>(config.global.voxel_resolution);
+  voxels->insert(*s.cloud);
+  voxels->finalize();
+  s.voxels = voxels;
+  s.factor_source = std::make_shared<const PointCloud>(evenly_subsampled(*s.cloud, config.global.factor_source_points));
+}
+
+// Writes into a fresh folder beside DIR, then swaps it in.
+void replace_folder(const fs::path& dir, const std::function<void(const fs::path&)>& write) {
+  const fs::path tmp = dir.string() + ".tmp." + std::to_string(::getpid());
+  const fs::path old = dir.string() + ".old." + std::to_string(::getpid());
+  std::error_code ec;
+  fs::remove_all(tmp, ec);
+  if (!fs::create_directories(tmp, ec) || ec) throw Error(tmp.string() + ": cannot create (" + ec.message() + ")");
+  try {
+    write(tmp);
+    if (fs::exists(dir)) fs::rename(dir, old);
+    fs::rename(tmp, dir);
+  } catch (const fs::filesystem_error& e) {
+    fs::remove_all(tmp, ec);
+    throw Error(dir.string() + ": cannot replace (" + e.code().message() + ")");
+  } catch (...) {
+    fs::remove_all(tmp, ec);
+    throw;
+  }
+  fs::remove_all(old, ec);
+}
+
+}  // namespace
+
+void write_session(const std::string& dir, const MappingPipeline& p, const std::vector<double>& stamps) {
+  replace_folder(dir, [&](const fs::path& tmp) {
+    const Eigen::Isometry3d T_out_world = p.mapper().output_from_world();
+    std::string bin(kMagic, sizeof kMagic);
+    put<uint32_t>(bin, kSessionVersion);
+    put<uint32_t>(bin, static_cast<uint32_t>(p.submaps().size()));
+    for (const Submap& s : p.submaps()) put_submap(bin, s, T_out_world * p.mapper().submap_pose(s.id));
+    write_file_atomic((tmp / "submaps.bin").string(), [&](std::ostream& o) { o.write(bin.data(), bin.size()); });
+    Trajectory t;
+    t.poses = p.trajectory();
+    t.stamps = stamps;
+    t.stamps.resize(t.poses.size(), 0.0);
+    t.format = TrajectoryFormat::tum;
+    write_trajectory((tmp / "trajectory.tum").string(), t);
+    write_file_atomic((tmp / "config.yaml").string(), [&](std::ostream& o) { o << p.config().to_yaml(); });
+    write_file_atomic((tmp / "manifest.yaml").string(), [&](std::ostream& o) { o << manifest_yaml(p); });
+  });
+}
+
+Session read_session(const std::string& dir) {
+  const fs::path root(dir);
+  std::error_code ec;
+  if (!fs::is_directory(root, ec)) throw Error(dir + ": no session folder");
+  Session s;
+  size_t frames = 0, submaps = 0;
+  read_manifest((root / "manifest.yaml").string(), s, &frames, &submaps);
+  s.config = MappingConfig::load((root / "config.yaml").string());
+  const Trajectory t = read_trajectory((root / "trajectory.tum").string());
+  if (t.size() != frames) throw Error((root / "trajectory.tum").string() + ": " + std::to_string(t.size()) + " poses, the manifest says " + std::to_string(frames) + " frames");
+  s.trajectory = t.poses;
+  s.stamps = t.stamps;
+  const std::string path = (root / "submaps.bin").string();
+  const std::string bytes = read_file(path);
+  Reader in(bytes, path);
+  char magic[8];
+  in.array(magic, 8);
+  if (std::memcmp(magic, kMagic, 8) != 0) in.fail("not a gcmap submap file");
+  const uint32_t version = in.get<uint32_t>();
+  if (static_cast<int>(version) != s.version) in.fail("version " + std::to_string(version) + " differs from the manifest's");
+  const uint32_t count = in.count(4 + 2 * 56 + 4 + 8 + 4, "submaps");
+  if (count != submaps) in.fail(std::to_string(count) + " submaps, the manifest says " + std::to_string(submaps));
+  for (uint32_t k = 0; k < count; ++k) {
+    Eigen::Isometry3d T;
+    s.submaps.push_back(get_submap(in, &T));
+    if (s.submaps.back().id != static_cast<int>(k)) in.fail("submap ids out of order");
+    for (int f : s.submaps.back().keyframes)
+      if (f < 0 || static_cast<size_t>(f) >= frames) in.fail("keyframe " + std::to_string(f) + " is not a frame of the session");
+    s.T_world_submap.push_back(T);
+  }
+  if (!in.done()) in.fail("unexpected bytes after the last submap");
+  for (const SessionFactor& f : s.factors)
+    if (f.source < 0 || f.target < 0 || static_cast<size_t>(std::max(f.source, f.target)) >= count)
+      throw Error((root / "manifest.yaml").string() + ": a factor names a submap that does not exist");
+  for (Submap& sm : s.submaps) rebuild(sm, s.config);
+  return s;
+}
+
+SessionInfo session_info(const Session& s, const std::string& dir) {
+  SessionInfo info;
+  info.version = s.version;
+  info.created_by = s.created_by;
+  info.frames = s.trajectory.size();
+  info.submaps = s.submaps.size();
+  info.factors = s.factors.size();
+  for (size_t k = 0; k < s.submaps.size(); ++k) {
+    info.keyframes += s.submaps[k].keyframes.size();
+    info.points += s.submaps[k].cloud->size();
+    for (const Eigen::Vector3f& p : s.submaps[k].cloud->points) info.extent.extend(s.T_world_submap[k] * p.cast<double>());
+  }
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir, ec))
+    if (e.is_regular_file()) info.bytes += e.file_size();
+  return info;
+}
+
+}  // namespace gcmap

@@ -1,0 +1,115 @@
+// Sessions: a mapping run written to disk and read back.
+#include <filesystem>
+#include <fstream>
+
+#include "gcmap/core/error.hpp"
+#include "gcmap/io/file.hpp"
+#include "gcmap/io/session.hpp"
+#include "gcmap/sim/simulator.hpp"
+#include "test_util.hpp"
+
+namespace gcmap {
+namespace {
+
+class SessionRoundTrip : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    sim::SimulationConfig sc;
+    sc.scenario = "small";
+    const sim::Simulator sim(sc);
+    pipeline = new MappingPipeline(MappingConfig{});
+    for (size_t f = 0; f < 45; ++f) pipeline->add_scan(sim.scan(f), 0.1 * f);
+    pipeline->finish();
+    dir = new test::TempDir();
+    std::vector<double> stamps;
+    for (size_t f = 0; f < 45; ++f) stamps.push_back(0.1 * f);
+    write_session(*dir / "session", *pipeline, stamps);
+  }
+  static void TearDownTestSuite() {
+    delete pipeline;
+    delete dir;
+  }
+  // A copy of the session folder to damage.
+  static std::string copy(const std::string& name) {
+    const std::string to = *dir / name;
+    std::filesystem::copy(*dir / "session", to, std::filesystem::copy_options::recursive);
+    return to;
+  }
+  static MappingPipeline* pipeline;
+  static test::TempDir* dir;
+};
+MappingPipeline* SessionRoundTrip::pipeline = nullptr;
+test::TempDir* SessionRoundTrip::dir = nullptr;
+
+TEST_F(SessionRoundTrip, ReadsBackWhatWasWritten) {
+  const Session s = read_session(*dir / "session");
+  EXPECT_EQ(s.version, kSessionVersion);
+  ASSERT_EQ(s.submaps.size(), pipeline->submaps().size());
+  ASSERT_GE(s.submaps.size(), 2u);
+  ASSERT_EQ(s.trajectory.size(), 45u);
+  const std::vector<Eigen::Isometry3d> traj = pipeline->trajectory();
+  for (size_t f = 0; f < traj.size(); ++f) EXPECT_LT(test::translation_error(s.trajectory[f], traj[f]), 1e-6);
+  EXPECT_NEAR(s.stamps[44], 4.4, 1e-9);
+  for (size_t k = 0; k < s.submaps.size(); ++k) {
+    const Submap& a = pipeline->submaps()[k];
+    const Submap& b = s.submaps[k];
+    EXPECT_EQ(b.keyframes, a.keyframes);
+    ASSERT_EQ(b.cloud->size(), a.cloud->size());
+    // Points exactly; covariances as their upper triangle (float products leave them asymmetric
+    // by rounding only).
+    float point_diff = 0.f, cov_diff = 0.f;
+    for (size_t i = 0; i < a.cloud->size(); ++i) {
+      point_diff = std::max(point_diff, (b.cloud->points[i] - a.cloud->points[i]).cwiseAbs().maxCoeff());
+      cov_diff = std::max(cov_diff, (b.cloud->covs[i] - a.cloud->covs[i]).cwiseAbs().maxCoeff());
+    }
+    EXPECT_EQ(point_diff, 0.f);
+    EXPECT_LT(cov_diff, 1e-6f);
+    ASSERT_EQ(b.descriptors.size(), a.descriptors.size());
+    EXPECT_EQ(b.descriptors.back().cells, a.descriptors.back().cells);
+    EXPECT_EQ(b.voxels->num_voxels(), a.voxels->num_voxels());  // rebuilt at the same resolution
+    const Eigen::Isometry3d T = pipeline->mapper().output_from_world() * pipeline->mapper().submap_pose(a.id);
+    EXPECT_LT(test::translation_error(s.T_world_submap[k], T), 1e-9);
+  }
+  ASSERT_EQ(s.factors.size(), pipeline->factors().size());
+  for (size_t f = 0; f < s.factors.size(); ++f) {
+    EXPECT_EQ(s.factors[f].kind, pipeline->factors()[f].kind);
+    EXPECT_EQ(s.factors[f].source, pipeline->factors()[f].source);
+    EXPECT_EQ(s.factors[f].target, pipeline->factors()[f].target);
+  }
+  const SessionInfo info = session_info(s, *dir / "session");
+  EXPECT_EQ(info.frames, 45u);
+  EXPECT_GT(info.bytes, info.points * 36);
+  EXPECT_GT(info.extent.sizes().x(), 20.0);  // 45 frames of a 10.7 m/s drive and 100 m of range
+}
+
+TEST_F(SessionRoundTrip, DamagedOrNewerSessionsAreRefusedWithTheFileNamed) {
+  const std::string newer = copy("newer");
+  std::string manifest = read_file(newer + "/manifest.yaml");
+  manifest.replace(manifest.find("version: 1"), 10, "version: 2");
+  std::ofstream(newer + "/manifest.yaml") << manifest;
+  try {
+    read_session(newer);
+    ADD_FAILURE() << "a newer version must be refused";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("newer than this gcmap reads"), std::string::npos) << e.what();
+  }
+  const std::string cut = copy("cut");
+  const std::string bin = read_file(cut + "/submaps.bin");
+  for (size_t len : {size_t{0}, size_t{7}, size_t{20}, size_t{150}, bin.size() / 2, bin.size() - 1}) {
+    std::ofstream(cut + "/submaps.bin", std::ios::binary | std::ios::trunc).write(bin.data(), len);
+    try {
+      read_session(cut);
+      ADD_FAILURE() << "a truncated submaps.bin (" << len << " bytes) must be refused";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("submaps.bin"), std::string::npos) << e.what();
+    }
+  }
+  // A point count that would need gigabytes is checked against the file before allocating.
+  std::ofstream(cut + "/submaps.bin", std::ios::binary | std::ios::trunc).write(bin.data(), 12);
+  std::ofstream(cut + "/submaps.bin", std::ios::binary | std::ios::app).write("\xff\xff\xff\x7f", 4);
+  EXPECT_THROW(read_session(cut), Error);
+  EXPECT_THROW(read_session(*dir / "missing"), Error);
+}
+
+}  // namespace
+}  // namespace gcmap
