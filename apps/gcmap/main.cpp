@@ -51,6 +51,7 @@ int main(int argc, char** argv) {
   gcmap::cli::add_demo(app, run);
   gcmap::cli::add_config(app, run);
   gcmap::cli::add_session(app, run);
+  gcmap::cli::add_localize(app, run);
 
   try {
     app.parse(argc, argv);

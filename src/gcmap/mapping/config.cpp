@@ -76,6 +76,10 @@ void visit(Config& c, Visitor&& v) {
   v("loop", "translation_sigma", c.loop.translation_sigma);
   v("loop", "tukey_width", c.loop.tukey_width);
   v("loop", "tukey_offset", c.loop.tukey_offset);
+  v("localize", "min_overlap", c.localize.min_overlap);
+  v("localize", "submap_radius", c.localize.submap_radius);
+  v("localize", "min_inlier_fraction", c.localize.min_inlier_fraction);
+  v("localize", "relocalize_every", c.localize.relocalize_every);
   v("output", "map_resolution", c.output.map_resolution);
   v("output", "pcd", c.output.pcd);
 }
@@ -187,6 +191,10 @@ void MappingConfig::validate() const {
   need(loop.min_inlier_fraction > 0 && loop.min_inlier_fraction <= 1, "loop.min_inlier_fraction must be in (0, 1]");
   need(loop.rotation_sigma_deg > 0 && loop.translation_sigma > 0, "loop sigmas must be positive");
   need(loop.tukey_width > 0 && loop.tukey_offset >= 0, "loop.tukey_width must be positive, loop.tukey_offset >= 0");
+  need(localize.min_overlap > 0 && localize.min_overlap <= 1, "localize.min_overlap must be in (0, 1]");
+  need(localize.submap_radius > 0, "localize.submap_radius must be positive");
+  need(localize.min_inlier_fraction > 0 && localize.min_inlier_fraction <= 1, "localize.min_inlier_fraction must be in (0, 1]");
+  need(localize.relocalize_every >= 1, "localize.relocalize_every must be >= 1");
   need(output.map_resolution > 0, "output.map_resolution must be positive");
 }
 

@@ -87,6 +87,18 @@ struct LoopConfig {
   double tukey_offset = 1000.0;
 };
 
+// Localization on a prior map (gcmap localize).
+struct LocalizationConfig {
+  // A frame tracks while at least this fraction of its points fall in voxels of the prior map
+  // (at global.voxel_resolution); below it the frame is lost and global initialization runs.
+  double min_overlap = 0.3;
+  double submap_radius = 120.0;  // m: prior submaps whose origin is this close are matched
+  // Global initialization: a ScanContext candidate is accepted when GICP aligns at least this
+  // fraction of the scan within loop.inlier_distance (a scan sees beyond one submap).
+  double min_inlier_fraction = 0.3;
+  int relocalize_every = 5;  // frames between global initialization attempts while lost
+};
+
 struct OutputConfig {
   double map_resolution = 0.1;
   bool pcd = false;
@@ -98,6 +110,7 @@ struct MappingConfig {
   LocalMappingConfig local;
   GlobalMappingConfig global;
   LoopConfig loop;
+  LocalizationConfig localize;
   OutputConfig output;
 
   // Throws Error("PATH: ...") naming the offending key.

@@ -59,6 +59,10 @@ MappingPipeline::MappingPipeline(const MappingConfig& config, std::shared_ptr<Li
       mapper_(config, backend_) {}
 
 PreparedScan MappingPipeline::prepare(PointCloud raw, double stamp) const {
+  return prepare_scan(std::move(raw), stamp, config_, options_);
+}
+
+PreparedScan prepare_scan(PointCloud raw, double stamp, const MappingConfig& config, const PipelineOptions& options) {
   Stopwatch w;
   PreparedScan out;
   out.stamp = stamp;
@@ -70,11 +74,11 @@ PreparedScan MappingPipeline::prepare(PointCloud raw, double stamp) const {
     spdlog::warn("scan at {:.6f} s: {} labels for {} points, ignored", stamp, raw.labels.size(), raw.size());
     raw.labels.clear();
   }
-  if (config_.preprocess.remove_dynamic_labels && raw.has_labels()) remove_moving_labels(raw);
+  if (config.preprocess.remove_dynamic_labels && raw.has_labels()) remove_moving_labels(raw);
   raw.labels.clear();  // not averaged per voxel: nothing downstream reads them
-  if (options_.kitti_hdl64 && config_.preprocess.kitti_vertical_correction) kitti_vertical_correction(raw);
+  if (options.kitti_hdl64 && config.preprocess.kitti_vertical_correction) kitti_vertical_correction(raw);
   // Range filtering drops NaN points too; what is left of a NaN-only scan is empty (unusable).
-  out.cloud = std::make_shared<PointCloud>(preprocess_scan(raw, config_.preprocess));
+  out.cloud = std::make_shared<PointCloud>(preprocess_scan(raw, config.preprocess));
   out.preprocess_ms = w.ms();
   return out;
 }

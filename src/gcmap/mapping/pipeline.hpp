@@ -46,6 +46,9 @@ struct PreparedScan {
   std::string error;
 };
 
+// Corrections, label-based removal, downsampling and covariances of one raw scan (thread-safe).
+PreparedScan prepare_scan(PointCloud raw, double stamp, const MappingConfig& config, const PipelineOptions& options);
+
 class MappingPipeline {
  public:
   // backend: where factors are linearized (default: the CPU). Throws Error naming a bad config key.
