@@ -56,6 +56,9 @@ int main(int argc, char** argv) {
   gcmap::cli::add_map(app, run);
   gcmap::cli::add_demo(app, run);
   gcmap::cli::add_config(app, run);
+  gcmap::cli::add_render(app, run);
+  gcmap::cli::add_plot(app, run);
+  gcmap::cli::add_view(app, run);
 
   try {
     app.parse(argc, argv);
