@@ -74,70 +74,91 @@ double nice_floor(double x) {
   return p;
 }
 
-void draw_scale_bar(Canvas& c, const TopDown& v, double s) {
-  const double metres = nice_floor(0.2 * v.width / v.pixels_per_m), len = metres * v.pixels_per_m;
-  const double x = 24 * s, y = v.height - 24 * s;
+// In the legend panel's bottom-left corner, at most `max_len` pixels long.
+void draw_scale_bar(Canvas& c, const TopDown& v, double s, double x, double bottom, double max_len) {
+  const double metres = nice_floor(max_len / v.pixels_per_m), len = metres * v.pixels_per_m, y = bottom - 24 * s;
   char label[32];
-  std::snprintf(label, sizeof(label), "%g m", metres);
-  c.colour(palette::background, 0.75);
-  c.rect(x - 10 * s, y - 40 * s, len + 20 * s, 52 * s);
+  std::snprintf(label, sizeof(label), "scale: %g m", metres);
   c.colour(palette::text);
   c.rect(x, y - 6 * s, len, 6 * s);
-  c.text(x + 0.5 * len, y - 14 * s, label, 20 * s, Align::center);
+  c.rect(x, y - 14 * s, 2 * s, 14 * s);
+  c.rect(x + len - 2 * s, y - 14 * s, 2 * s, 14 * s);
+  c.text(x, y - 22 * s, label, 20 * s);
 }
 
-void draw_legend(Canvas& c, const std::vector<LegendEntry>& legend, const ColourScale* scale, double s) {
-  const double fs = 20 * s, row = 1.6 * fs, swatch = 2.2 * fs, x = 24 * s, y = 24 * s;
-  double text_w = scale ? c.text_width(scale->label, fs) + 4 * fs : 0.0;
-  for (const LegendEntry& e : legend) text_w = std::max(text_w, c.text_width(e.label, fs));
-  const double rows = legend.size() + (scale ? 2.0 : 0.0);
-  c.colour(palette::background, 0.8);
-  c.rect(x, y, swatch + text_w + 1.5 * fs, rows * row + fs);
-  double yy = y + 0.5 * fs + 0.5 * row;
+struct LegendLayout {
+  double s, fs, row, swatch, text_w;
+  double width() const { return swatch + text_w + 2.5 * fs; }
+  // Entries, the colour scale and the scale bar below them.
+  double height(size_t entries, bool scale) const { return (entries + (scale ? 2.0 : 0.0) + 3.0) * row + 2 * fs; }
+};
+
+std::string scale_range(const ColourScale& scale) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%.3g .. %.3g", scale.lo, scale.hi);
+  return buf;
+}
+
+LegendLayout legend_layout(const std::vector<LegendEntry>& legend, const ColourScale* scale, double s) {
+  Image scratch(1, 1, palette::background);
+  Canvas c(scratch);
+  LegendLayout l{s, 20 * s, 32 * s, 44 * s, 0.0};
+  if (scale) l.text_w = c.text_width(scale->label + "  " + scale_range(*scale), l.fs) - l.swatch + 0.5 * l.fs;
+  for (const LegendEntry& e : legend) l.text_w = std::max(l.text_w, c.text_width(e.label, l.fs));
+  return l;
+}
+
+void draw_legend(Canvas& c, const LegendLayout& l, const std::vector<LegendEntry>& legend, const ColourScale* scale, double x) {
+  double y = l.fs + 0.5 * l.row;
   for (const LegendEntry& e : legend) {
     c.colour(e.colour);
-    const Eigen::Vector2d a(x + 0.5 * fs, yy), b(x + swatch, yy);
-    if (e.dot) c.dot(0.5 * (a + b), 0.35 * fs);
-    else c.line(a, b, e.factor == FactorKind::loop ? 4 * s : 3 * s);
+    const Eigen::Vector2d a(x, y), b(x + l.swatch - 0.5 * l.fs, y);
+    if (e.dot) c.dot(0.5 * (a + b), 0.35 * l.fs);
+    else c.line(a, b, e.factor == FactorKind::loop ? 4 * l.s : 3 * l.s);
     c.colour(palette::text);
-    c.text(x + swatch + 0.5 * fs, yy + 0.35 * fs, e.label, fs);
-    yy += row;
+    c.text(x + l.swatch, y + 0.35 * l.fs, e.label, l.fs);
+    y += l.row;
   }
   if (!scale) return;
   c.colour(palette::text);
-  c.text(x + 0.5 * fs, yy + 0.35 * fs, scale->label, fs);
-  const double gx = x + 0.5 * fs, gw = swatch + text_w, gy = yy + 0.6 * row;
-  cairo_pattern_t* grad = cairo_pattern_create_linear(gx, 0, gx + gw, 0);
+  c.text(x, y + 0.35 * l.fs, scale->label + "  " + scale_range(*scale), l.fs);
+  const double gw = l.swatch + l.text_w - 0.5 * l.fs, gy = y + 0.6 * l.row;
+  cairo_pattern_t* grad = cairo_pattern_create_linear(x, 0, x + gw, 0);
   for (int i = 0; i <= 10; ++i) {
     const Rgb k = colormap(i / 10.0);
     cairo_pattern_add_color_stop_rgb(grad, i / 10.0, k.r / 255.0, k.g / 255.0, k.b / 255.0);
   }
   cairo_set_source(c.cr(), grad);
-  cairo_rectangle(c.cr(), gx, gy, gw, 0.5 * fs);
+  cairo_rectangle(c.cr(), x, gy, gw, 0.5 * l.fs);
   cairo_fill(c.cr());
   cairo_pattern_destroy(grad);
-  char lo[32], hi[32];
-  std::snprintf(lo, sizeof(lo), "%.3g", scale->lo);
-  std::snprintf(hi, sizeof(hi), "%.3g", scale->hi);
-  c.colour(palette::text);
-  c.text(x + c.text_width(scale->label, fs) + 1.5 * fs, yy + 0.35 * fs, std::string(lo) + " .. " + hi, fs);
 }
 
 }  // namespace
 
-void draw_overlays(Image& image, const RunData& run, const TopDown& view, const RenderOptions& options,
-                   const std::vector<LegendEntry>& legend, const ColourScale* scale, const std::string& note) {
-  Canvas c(image);
-  const double s = std::max(0.6, std::max(image.width, image.height) / 2000.0);
+Image compose_picture(const Image& raster, const RunData& run, const TopDown& view, const RenderOptions& options,
+                      const std::vector<LegendEntry>& legend, const ColourScale* scale, const std::string& note) {
+  const double s = std::max(0.6, std::max(raster.width, raster.height) / 2000.0);
+  const LegendLayout layout = legend_layout(legend, scale, s);
+  const int height = std::max(raster.height, static_cast<int>(std::ceil(layout.height(legend.size(), scale))));
+  Image pic(raster.width + static_cast<int>(std::ceil(layout.width())), height, palette::panel);
+  for (int y = 0; y < raster.height; ++y)
+    std::copy_n(raster.pixels.begin() + static_cast<size_t>(y) * raster.width, raster.width,
+                pic.pixels.begin() + static_cast<size_t>(y) * pic.width);
+  Canvas c(pic);
+  cairo_rectangle(c.cr(), 0, 0, raster.width, raster.height);
+  cairo_clip(c.cr());
   if (options.graph) draw_factors(c, run.graph, view, s);
   draw_trajectory(c, run.trajectory, view, s);
   if (options.graph) draw_nodes(c, run.graph, view, s);
-  draw_scale_bar(c, view, s);
-  draw_legend(c, legend, scale, s);
   if (!note.empty()) {
     c.colour(palette::text);
-    c.text(0.5 * image.width, 0.5 * image.height, note, 32 * s, Align::center);
+    c.text(0.5 * raster.width, 0.5 * raster.height, note, 32 * s, Align::center);
   }
+  cairo_reset_clip(c.cr());
+  draw_legend(c, layout, legend, scale, raster.width + layout.fs);
+  draw_scale_bar(c, view, s, raster.width + layout.fs, pic.height, layout.width() - 2 * layout.fs);
+  return pic;
 }
 
 }  // namespace gcmap::viz

@@ -13,8 +13,10 @@ struct ColourScale {
   double lo = 0.0, hi = 1.0;
 };
 
-// Factors, trajectory, nodes, loop weights, scale bar, legend and an optional centred note.
-void draw_overlays(Image& image, const RunData& run, const TopDown& view, const RenderOptions& options,
-                   const std::vector<LegendEntry>& legend, const ColourScale* scale, const std::string& note);
+// The picture: `raster` (the map seen from above, in view's pixels) with the factors, trajectory,
+// nodes, loop weights, scale bar and an optional centred note drawn over it, and the legend in a
+// panel on its right, where it hides nothing.
+Image compose_picture(const Image& raster, const RunData& run, const TopDown& view, const RenderOptions& options,
+                      const std::vector<LegendEntry>& legend, const ColourScale* scale, const std::string& note);
 
 }  // namespace gcmap::viz

@@ -94,11 +94,11 @@ std::optional<ColourScale> rasterize(Image& img, const RunData& run, const TopDo
     values.push_back(intensity ? g.value[k] / g.count[k] : g.top[k]);
     counts.push_back(static_cast<float>(g.count[k]));
   }
-  // Denser pixels (walls, poles) brighter: a shade in [0.45, 1] from log(count).
+  // Denser pixels (walls, poles) brighter: a shade in [0.55, 1] from log(count).
   const double dense = std::log1p(std::max(1.0, robust_range(counts, 0.1).second));
   std::vector<float> shade(g.count.size(), 0.0f);
   for (size_t k = 0; k < g.count.size(); ++k)
-    if (g.count[k]) shade[k] = static_cast<float>(0.45 + 0.55 * std::min(1.0, std::log1p(g.count[k]) / dense));
+    if (g.count[k]) shade[k] = static_cast<float>(0.55 + 0.45 * std::min(1.0, std::log1p(g.count[k]) / dense));
   if (mode == ColorMode::submap) {
     colour_by_submap(img, g, run, v, shade);
     return std::nullopt;
@@ -175,10 +175,10 @@ MapPicture render_map(const RunData& run, const RenderOptions& options) {
   MapPicture pic;
   pic.view = fit_top_down(run, options.size);
   pic.legend = legend_entries(run, options);
-  pic.image = Image(pic.view.width, pic.view.height, palette::background);
-  const std::optional<ColourScale> scale = rasterize(pic.image, run, pic.view, options.color);
-  const std::string note = run.map.empty() ? "empty map: map.ply has no points" : "";
-  draw_overlays(pic.image, run, pic.view, options, pic.legend, scale ? &*scale : nullptr, note);
+  Image raster(pic.view.width, pic.view.height, palette::background);
+  const std::optional<ColourScale> scale = rasterize(raster, run, pic.view, options.color);
+  if (run.map.empty()) pic.note = "empty map: map.ply has no points";
+  pic.image = compose_picture(raster, run, pic.view, options, pic.legend, scale ? &*scale : nullptr, pic.note);
   return pic;
 }
 

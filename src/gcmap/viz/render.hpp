@@ -36,6 +36,7 @@ inline constexpr Rgb background{20, 22, 26};
 inline constexpr Rgb trajectory{255, 255, 255};
 inline constexpr Rgb node{255, 225, 77};
 inline constexpr Rgb text{235, 235, 235};
+inline constexpr Rgb panel{34, 37, 43};  // behind the legend
 Rgb factor(FactorKind kind);
 }  // namespace palette
 
@@ -50,9 +51,10 @@ struct LegendEntry {
 std::vector<LegendEntry> legend_entries(const RunData& run, const RenderOptions& options);
 
 struct MapPicture {
-  Image image;
+  Image image;   // the map area (view) on the left, the legend panel on the right
   TopDown view;
   std::vector<LegendEntry> legend;
+  std::string note;  // printed across the picture ("empty map ..."), empty when none
 };
 // Throws Error when options.color is intensity and the map has none (naming the mode).
 MapPicture render_map(const RunData& run, const RenderOptions& options);

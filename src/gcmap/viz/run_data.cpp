@@ -113,7 +113,7 @@ RunGraph read_graph_json(const std::string& path) {
   const YAML::Node submaps = array_member(root, "submaps", path);
   const YAML::Node factors = array_member(root, "factors", path);
   RunGraph g;
-  Eigen::Isometry3d T_out_world = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_submap0_world = Eigen::Isometry3d::Identity();
   for (size_t i = 0; i < submaps.size(); ++i) {
     const std::string where = item(path, "submaps", i);
     GraphNode n;
@@ -121,8 +121,8 @@ RunGraph read_graph_json(const std::string& path) {
     if (n.id != static_cast<int>(i)) throw Error(where + ": id " + std::to_string(n.id) + ", expected " + std::to_string(i));
     n.first_frame = integer(submaps[i], "first_frame", where);
     const Eigen::Isometry3d T_world_submap = pose(submaps[i], where);
-    if (i == 0) T_out_world = T_world_submap.inverse();
-    n.T_out_submap = T_out_world * T_world_submap;
+    if (i == 0) T_submap0_world = T_world_submap.inverse();
+    n.T_out_submap = T_submap0_world * T_world_submap;
     g.nodes.push_back(n);
   }
   for (size_t i = 0; i < factors.size(); ++i) {
@@ -179,7 +179,11 @@ RunData read_run(const std::string& dir, bool with_graph) {
   RunData run;
   run.map = read_point_cloud(run_file(dir, "map.ply"));
   run.trajectory = read_trajectory(run_file(dir, "trajectory.kitti")).poses;
-  if (with_graph) run.graph = read_graph_json(run_file(dir, "graph.json"));
+  if (with_graph) {
+    run.graph = read_graph_json(run_file(dir, "graph.json"));
+    if (!run.trajectory.empty())
+      for (GraphNode& n : run.graph.nodes) n.T_out_submap = run.trajectory.front() * n.T_out_submap;
+  }
   return run;
 }
 

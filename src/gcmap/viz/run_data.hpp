@@ -18,7 +18,7 @@ const char* factor_kind_name(FactorKind kind);  // as graph.json spells it
 struct GraphNode {
   int id = 0;
   int first_frame = 0;
-  Eigen::Isometry3d T_out_submap = Eigen::Isometry3d::Identity();  // in the frame of trajectory.kitti
+  Eigen::Isometry3d T_out_submap = Eigen::Isometry3d::Identity();  // in the frame of trajectory.kitti (see below)
 };
 struct GraphEdge {
   FactorKind kind = FactorKind::matching_cost;
@@ -32,9 +32,11 @@ struct RunGraph {
   size_t count(FactorKind kind) const;
 };
 
-// graph.json writes submap poses in the optimizer's world frame; trajectory.kitti and map.ply have
-// the first frame at identity. The first frame is the first keyframe of submap 0, which sits at
-// its submap's origin, so T_out_world = inverse(pose of submap 0).
+// graph.json writes submap poses in the optimizer's world frame; trajectory.kitti and map.ply are
+// expressed in the frame of the run's first frame. That frame is the first keyframe of submap 0,
+// which sits at its submap's origin: read_graph_json returns the nodes relative to submap 0
+// (T_out_submap = inverse(T_world_submap0) * T_world_submap), read_run then places them with the
+// trajectory's first pose (the identity in `gcmap map` outputs).
 RunGraph read_graph_json(const std::string& path);
 
 struct ModuleTiming {
