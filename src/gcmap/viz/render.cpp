@@ -127,6 +127,11 @@ void RenderOptions::validate() const {
   if (size < 200 || size > 16384) throw Error("render size " + std::to_string(size) + ": must be within 200..16384 pixels");
 }
 
+const char* factor_kind_label(FactorKind kind) {
+  static const char* names[] = {"matching-cost factors", "odometry factors", "SE(3) factors", "explicit loops"};
+  return names[static_cast<int>(kind)];
+}
+
 namespace palette {
 Rgb factor(FactorKind kind) {
   switch (kind) {
@@ -161,10 +166,11 @@ std::vector<LegendEntry> legend_entries(const RunData& run, const RenderOptions&
   out.push_back({"trajectory (" + std::to_string(run.trajectory.size()) + " frames)", palette::trajectory, std::nullopt, false});
   if (!options.graph) return out;
   out.push_back({std::to_string(run.graph.nodes.size()) + " submaps", palette::node, std::nullopt, true});
-  static const char* names[] = {"matching-cost factors", "odometry factors", "SE(3) factors", "explicit loops (w: final kernel weight)"};
   for (FactorKind k : kFactorKinds)
     if (run.graph.has(k))
-      out.push_back({std::to_string(run.graph.count(k)) + " " + names[static_cast<int>(k)], palette::factor(k), k, false});
+      out.push_back({std::to_string(run.graph.count(k)) + " " + factor_kind_label(k) +
+                         (k == FactorKind::loop ? " (w: final kernel weight)" : ""),
+                     palette::factor(k), k, false});
   return out;
 }
 

@@ -40,6 +40,8 @@ inline constexpr Rgb panel{34, 37, 43};  // behind the legend
 Rgb factor(FactorKind kind);
 }  // namespace palette
 
+const char* factor_kind_label(FactorKind kind);  // "matching-cost factors", ...
+
 struct LegendEntry {
   std::string label;
   Rgb colour;

@@ -100,7 +100,7 @@ Json page_meta(const RunData& run, const std::vector<size_t>& keep, const Eigen:
   for (const LegendEntry& e : legend_entries(run, with_graph)) {
     if (!e.factor) continue;
     Json f = Json::object(), seg = Json::array();
-    f["label"] = e.label;
+    f["label"] = std::to_string(run.graph.count(*e.factor)) + " " + factor_kind_label(*e.factor);
     f["colour"] = e.colour.hex();
     f["opacity"] = *e.factor == FactorKind::matching_cost ? 0.45 : 1.0;
     for (const GraphEdge& g : run.graph.edges)
