@@ -23,6 +23,8 @@ struct Grid {
   std::vector<uint32_t> count;
 };
 
+// Serial: the scatter is bound by cache misses, and a fixed order keeps the intensity sums (and
+// the PNG bytes) the same every run.
 Grid accumulate(const PointCloud& map, const TopDown& v, bool intensity) {
   const size_t n = static_cast<size_t>(v.width) * v.height;
   Grid g{std::vector<float>(n, -std::numeric_limits<float>::infinity()), std::vector<float>(intensity ? n : 0, 0.0f),
@@ -104,13 +106,14 @@ std::optional<ColourScale> rasterize(Image& img, const RunData& run, const TopDo
     return std::nullopt;
   }
   const auto [lo, hi] = robust_range(values);
-  for (int y = 0; y < v.height; ++y)
+  tbb::parallel_for(0, v.height, [&](int y) {
     for (int x = 0; x < v.width; ++x) {
       const size_t k = static_cast<size_t>(y) * v.width + x;
       if (!g.count[k]) continue;
       const double value = intensity ? g.value[k] / g.count[k] : g.top[k];
       img.set(x, y, scaled(colormap((value - lo) / (hi - lo)), shade[k]));
     }
+  });
   return ColourScale{intensity ? "intensity" : "height [m]", lo, hi};
 }
 
