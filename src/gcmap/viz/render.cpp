@@ -101,6 +101,7 @@ std::optional<ColourScale> rasterize(Image& img, const RunData& run, const TopDo
   std::vector<float> shade(g.count.size(), 0.0f);
   for (size_t k = 0; k < g.count.size(); ++k)
     if (g.count[k]) shade[k] = static_cast<float>(0.55 + 0.45 * std::min(1.0, std::log1p(g.count[k]) / dense));
+  if (values.empty()) return std::nullopt;  // an empty map has no colour scale
   if (mode == ColorMode::submap) {
     colour_by_submap(img, g, run, v, shade);
     return std::nullopt;
