@@ -14,8 +14,14 @@ std::string Rgb::hex() const {
   return buf;
 }
 
-Image::Image(int w, int h, Rgb fill) : width(w), height(h), pixels(static_cast<size_t>(w) * h) {
+namespace {
+size_t checked_pixels(int w, int h) {
   if (w <= 0 || h <= 0) throw Error("image size " + std::to_string(w) + "x" + std::to_string(h) + ": must be positive");
+  return static_cast<size_t>(w) * h;
+}
+}  // namespace
+
+Image::Image(int w, int h, Rgb fill) : width(w), height(h), pixels(checked_pixels(w, h)) {
   set(0, 0, fill);
   std::fill(pixels.begin(), pixels.end(), pixels[0]);
 }
