@@ -97,17 +97,6 @@ std::string Canvas::finish() {
   return png;
 }
 
-std::string encode_png(const Image& image) {
-  // Cairo only reads the pixels here.
-  Canvas canvas(const_cast<Image&>(image));
-  return canvas.finish();
-}
-
-void write_png(const std::string& path, const Image& image) {
-  const std::string bytes = encode_png(image);
-  write_file_atomic(path, [&](std::ostream& out) { out.write(bytes.data(), static_cast<std::streamsize>(bytes.size())); });
-}
-
 void write_figure(const std::string& path, Canvas& canvas) {
   const std::string bytes = canvas.finish();
   write_file_atomic(path, [&](std::ostream& out) { out.write(bytes.data(), static_cast<std::streamsize>(bytes.size())); });
