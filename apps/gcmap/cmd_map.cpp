@@ -11,6 +11,7 @@
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "gcmap/sim/simulator.hpp"
+#include "gcmap/viz/run_pictures.hpp"
 #include "map_runner.hpp"
 
 namespace gcmap::cli {
@@ -24,6 +25,7 @@ struct Overrides {
   double map_resolution = -1.0;
   bool pcd = false;
   bool no_explicit_loops = false;
+  bool no_render = false;
   int threads = 0;
   std::string device = "auto";
 
@@ -36,6 +38,7 @@ struct Overrides {
     cmd->add_option("--map-resolution", map_resolution, "Voxel size of map.ply in m (default 0.1)");
     cmd->add_flag("--pcd", pcd, "Also write map.pcd");
     cmd->add_flag("--no-explicit-loops", no_explicit_loops, "No ScanContext loop constraints (loop.enabled: false)");
+    cmd->add_flag("--no-render", no_render, "Do not draw map.png (and, for demo, view.html and plots/)");
     cmd->add_option("--threads", threads, "Worker threads (0 = all cores)")->capture_default_str();
   }
   MappingConfig resolve() const {
@@ -81,6 +84,8 @@ void add_map(CLI::App& app, Runner& run) {
                    r.signal ? "Interrupted: mapped" : "Mapped", r.frames, r.seconds, r.fps, r.submaps, r.factors);
       std::fprintf(stderr, "Wrote %s: trajectory.kitti and .tum (optimized poses), odometry.kitti, map.ply%s, graph.json, stats.json%s, config.yaml, session/ (for localize and merge).\n",
                    opt->output.c_str(), opt->config.output.pcd ? " and map.pcd" : "", r.signal ? " (marked partial)" : "");
+      if (!ov->no_render)
+        for (const auto& f : viz::write_run_pictures(opt->output, {})) std::fprintf(stderr, "Wrote %s: %s.\n", f.path.c_str(), f.what.c_str());
       return r.signal ? 128 + r.signal : 0;
     };
   });
@@ -150,7 +155,14 @@ void add_demo(CLI::App& app, Runner& run) {
       std::printf("%-28s %12zu\n", "submaps", r.submaps);
       std::printf("%-28s %12zu\n", "global factors", r.factors);
       std::printf("%-28s %12.2f\n", "frames per second", r.fps);
-      std::printf("outputs: %s\n", temporary ? "(temporary, removed)" : (dir / "map").string().c_str());
+      if (!ov->no_render && !temporary) {
+        viz::RunPicturesOptions po;
+        po.view_html = po.plots = true;
+        po.plot.ground_truth = (dir / "sim" / "poses.txt").string();
+        std::printf("pictures:\n");
+        for (const auto& f : viz::write_run_pictures(mo.output, po)) std::printf("  %s: %s\n", f.path.c_str(), f.what.c_str());
+      }
+      std::printf("outputs: %s\n", temporary ? "(temporary, removed; give -o DIR to keep them and their pictures)" : (dir / "map").string().c_str());
       return 0;
     };
   });
