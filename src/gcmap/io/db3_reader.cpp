@@ -139,7 +139,23 @@ class Db3Reader : public BagReader {
       f.fail("not an sqlite3 database");
   }
 
+  // sqlite reads the missing end of a cut file as zeros: compare the size the header declares.
+  static void check_size(DbFile& f) {
+    uint64_t actual = f.bytes.size();
+    if (f.bytes.empty()) {
+      std::error_code ec;
+      if (fs::exists(f.name + "-wal", ec)) return;  // pages may live in the write-ahead log
+      actual = fs::file_size(f.name, ec);
+    }
+    Statement pages = f.prepare("PRAGMA page_count"), size = f.prepare("PRAGMA page_size");
+    if (f.step(pages.get()) != SQLITE_ROW || f.step(size.get()) != SQLITE_ROW) f.fail("corrupt database");
+    const uint64_t declared = uint64_t(sqlite3_column_int64(pages.get(), 0)) * uint64_t(sqlite3_column_int64(size.get(), 0));
+    if (declared > actual)
+      throw Error(f.name + ": truncated database (" + std::to_string(actual) + " of " + std::to_string(declared) + " bytes)");
+  }
+
   void load_topics(DbFile& f) {
+    check_size(f);
     Statement t = f.prepare("SELECT id, name, type, serialization_format FROM topics");
     std::vector<ChannelInfo> here;
     while (f.step(t.get()) == SQLITE_ROW) {
