@@ -21,6 +21,7 @@ void add_mme(CLI::App& app, Runner& run);
 void add_map(CLI::App& app, Runner& run);
 void add_demo(CLI::App& app, Runner& run);
 void add_config(CLI::App& app, Runner& run);
+void add_bag_info(CLI::App& app, Runner& run);
 
 // "x y z qx qy qz qw" -> pose; throws Error naming the option.
 Eigen::Isometry3d parse_pose_option(const std::string& option, const std::string& text);

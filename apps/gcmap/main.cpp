@@ -56,6 +56,7 @@ int main(int argc, char** argv) {
   gcmap::cli::add_map(app, run);
   gcmap::cli::add_demo(app, run);
   gcmap::cli::add_config(app, run);
+  gcmap::cli::add_bag_info(app, run);
 
   try {
     app.parse(argc, argv);

@@ -20,7 +20,7 @@ std::string_view ByteReader::bytes(uint64_t n) {
   return v;
 }
 
-void ByteReader::fail(const std::string& what) const { throw Error(std::string(where_) + ": " + what); }
+void ByteReader::fail(const std::string& what) const { throw Error(where_ + ": " + what); }
 
 void ByteSource::check_range(uint64_t offset, uint64_t n) const {
   if (offset > size_ || n > size_ - offset)

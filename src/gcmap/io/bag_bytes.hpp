@@ -13,7 +13,7 @@ namespace gcmap {
 // Reads fields from a byte span; any read past the end throws Error("<where>: truncated ...").
 class ByteReader {
  public:
-  ByteReader(std::string_view data, std::string_view where) : data_(data), where_(where) {}
+  ByteReader(std::string_view data, std::string where) : data_(data), where_(std::move(where)) {}
 
   size_t pos() const { return pos_; }
   size_t remaining() const { return data_.size() - pos_; }
@@ -36,7 +36,7 @@ class ByteReader {
     return v;
   }
   std::string_view data_;
-  std::string_view where_;
+  std::string where_;  // owned: callers often pass a temporary
   size_t pos_ = 0;
 };
 

@@ -133,10 +133,13 @@ BagScanSource::BagScanSource(std::unique_ptr<BagReader> bag, const BagScanOption
     throw Error(bag_->path() + ": start time must be a finite number >= 0 (s after the first message)");
   if (!(options.duration > 0)) throw Error(bag_->path() + ": duration must be > 0 s");
   topic_ = choose_point_cloud_topic(*bag_, options.topic);
-  const int64_t begin = bag_->start_ns() + to_ns(options.start_time);
-  const double end = double(begin) + options.duration * 1e9;
-  const int64_t end_ns = end >= 9.2e18 ? std::numeric_limits<int64_t>::max() : int64_t(end);
-  cursor_ = bag_->read(topic_, begin, end_ns);
+  // base + s, saturated at the end of the int64 range instead of overflowing.
+  auto add_s = [](int64_t base, double s) {
+    const double ns = s * 1e9, room = double(std::numeric_limits<int64_t>::max()) - double(base) - 1e6;
+    return ns >= room ? std::numeric_limits<int64_t>::max() : base + int64_t(ns);
+  };
+  const int64_t begin = add_s(bag_->start_ns(), options.start_time);
+  cursor_ = bag_->read(topic_, begin, add_s(begin, options.duration));
 }
 
 uint64_t BagScanSource::message_count() const { return bag_->topic(topic_).message_count; }

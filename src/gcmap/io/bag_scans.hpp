@@ -42,6 +42,14 @@ std::vector<std::string> point_cloud_topics(const BagReader& bag);
 // Error listing the candidates when there are none or several.
 std::string choose_point_cloud_topic(const BagReader& bag, const std::string& topic);
 
+// What a point-cloud topic holds, from its first message (for bag-info).
+struct CloudTopicInfo {
+  std::vector<PointField> fields;  // PointCloud2; Livox: x y z reflectivity offset_time
+  uint32_t width = 0, height = 0;
+  std::string time_field;  // the per-point time used and its convention, or "none"
+};
+CloudTopicInfo describe_cloud_topic(BagReader& bag, const std::string& topic);
+
 struct BagScanOptions {
   std::string topic;  // empty: the single point-cloud topic
   double start_time = 0;                                  // s after the bag's first message

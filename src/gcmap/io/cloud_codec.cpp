@@ -114,7 +114,9 @@ BagScan pointcloud2_to_scan(const PointCloud2Msg& m, const std::string& where) {
   if (intensity) scan.cloud.intensities.reserve(n);
   std::vector<double> rel;
   if (time.kind != TimeKind::none) rel.reserve(n);
-  for (uint32_t row = 0; row < m.height; ++row) {
+  // Whole seconds apart, so that sec/nsec times subtract exactly in double.
+  const double header_sec = double(m.stamp_ns / 1000000000), header_nsec = double(m.stamp_ns % 1000000000);
+  for (uint32_t row = 0; row < (m.width ? m.height : 0); ++row) {
     const char* p = m.data.data() + uint64_t(row) * m.row_step;
     for (uint32_t col = 0; col < m.width; ++col, p += m.point_step) {
       const Eigen::Vector3f pt(float(x(p)), float(y(p)), float(z(p)));
@@ -122,7 +124,7 @@ BagScan pointcloud2_to_scan(const PointCloud2Msg& m, const std::string& where) {
       double t = 0;
       if (time.kind == TimeKind::relative) t = time.a(p) * time.scale;
       if (time.kind == TimeKind::absolute) t = time.a(p) * time.scale - scan.header_stamp;
-      if (time.kind == TimeKind::sec_nsec) t = double(int64_t(time.a(p)) * 1000000000 + int64_t(time.b(p)) - m.stamp_ns) * 1e-9;
+      if (time.kind == TimeKind::sec_nsec) t = (time.a(p) - header_sec) + (time.b(p) - header_nsec) * 1e-9;
       if (!std::isfinite(t)) continue;
       scan.cloud.points.push_back(pt);
       if (intensity) scan.cloud.intensities.push_back(float(intensity(p)));
@@ -144,10 +146,40 @@ BagScan livox_to_scan(const LivoxMsg& m) {
     if (!pt.allFinite()) continue;
     scan.cloud.points.push_back(pt);
     scan.cloud.intensities.push_back(p.reflectivity);
-    rel.push_back(double(int64_t(m.timebase + p.offset_time) - m.stamp_ns) * 1e-9);
+    rel.push_back(double(int64_t(m.timebase + p.offset_time - uint64_t(m.stamp_ns))) * 1e-9);  // modular: no overflow
   }
   finish_times(scan, rel);
   return scan;
+}
+
+CloudTopicInfo describe_cloud_topic(BagReader& bag, const std::string& topic) {
+  const BagTopic& t = bag.topic(topic);
+  CloudTopicInfo info;
+  BagMessage msg;
+  if (!bag.read(topic)->next(msg)) return info;
+  const std::string where = bag.path() + ": first message of " + topic;
+  if (is_livox_type(t.type)) {
+    const LivoxMsg m = decode_livox(msg.data, t.encoding, where);
+    info.width = uint32_t(m.points.size());
+    info.height = 1;
+    info.fields = {{"x", 4, 7, 1}, {"y", 8, 7, 1}, {"z", 12, 7, 1}, {"reflectivity", 16, 2, 1}, {"offset_time", 0, 6, 1}};
+    info.time_field = "offset_time (ns after timebase)";
+    return info;
+  }
+  const PointCloud2Msg m = decode_pointcloud2(msg.data, t.encoding, where);
+  check_layout(m, where);
+  info.fields = m.fields;
+  info.width = m.width;
+  info.height = m.height;
+  const TimeSpec s = find_time(m, m.height && m.width ? m.data.data() : nullptr, where);
+  const std::string unit = s.scale == 1 ? "s" : "ns";
+  switch (s.kind) {
+    case TimeKind::none: info.time_field = "none"; break;
+    case TimeKind::sec_nsec: info.time_field = "time_sec + time_nsec (absolute)"; break;
+    case TimeKind::absolute: info.time_field = s.a.field->name + " (absolute " + unit + ")"; break;
+    case TimeKind::relative: info.time_field = s.a.field->name + " (" + unit + " after the header stamp)"; break;
+  }
+  return info;
 }
 
 BagScan decode_scan(const BagTopic& topic, std::string_view data, const std::string& where) {

@@ -77,7 +77,7 @@ class Ros1Reader : public BagReader {
     if (header.op() != kBagHeader) r.fail("expected the bag header record");
     const uint64_t index_pos = header.num<uint64_t>("index_pos");
     const uint32_t chunk_count = header.num<uint32_t>("chunk_count");
-    bool indexed = index_pos >= first && index_pos < src_->size();
+    bool indexed = index_pos >= first && index_pos <= src_->size();
     if (indexed) {
       try {
         read_index(index_pos);

@@ -12,7 +12,7 @@ namespace {
 class Deserializer {
  public:
   Deserializer(std::string_view msg, MessageEncoding enc, std::string_view where)
-      : r_(msg, where), cdr_(enc == MessageEncoding::cdr) {
+      : r_(msg, std::string(where)), cdr_(enc == MessageEncoding::cdr) {
     if (enc == MessageEncoding::other) r_.fail("unsupported message encoding (neither ros1 nor cdr)");
     if (!cdr_) return;
     const uint8_t b0 = r_.u8(), b1 = r_.u8();
