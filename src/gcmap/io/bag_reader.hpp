@@ -45,7 +45,7 @@ class BagReader {
   // Record times of the first and last message (0, 0 for an empty bag).
   int64_t start_ns() const { return start_ns_; }
   int64_t end_ns() const { return end_ns_; }
-  // What was skipped while opening (truncation, bad CRCs), one line each.
+  // What was skipped (truncation, chunks with bad CRCs), one line each, as found while opening and reading.
   const std::vector<std::string>& warnings() const { return warnings_; }
 
   // Throws Error listing the topics when `name` is absent.

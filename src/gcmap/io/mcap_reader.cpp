@@ -88,7 +88,7 @@ class McapReader : public BagReader {
   }
 
   // Decompressed records of the chunk at `offset`; false (with a warning) on a CRC mismatch.
-  bool load_chunk(uint64_t offset, std::string& out) const {
+  bool load_chunk(uint64_t offset, std::string& out) {
     std::string rec;
     load_record(offset, rec);
     const std::string at = where(offset);
@@ -107,7 +107,7 @@ class McapReader : public BagReader {
     else if (!comp.empty()) r.fail("unknown compression '" + std::string(comp) + "'");
     decompress(c, data, usize, true, out, at);
     if (crc != 0 && crc32(out) != crc) {
-      spdlog::warn("{}: chunk with a bad CRC skipped", at);
+      warn(at + ": chunk with a bad CRC skipped");
       return false;
     }
     return true;
@@ -212,10 +212,7 @@ bool McapReader::read_summary() {
 
 void McapReader::scan_chunk(uint64_t offset, std::map<uint16_t, uint64_t>& counts, bool& any) {
   std::string buf;
-  if (!load_chunk(offset, buf)) {
-    warnings_.push_back(where(offset) + ": chunk with a bad CRC skipped");
-    return;
-  }
+  if (!load_chunk(offset, buf)) return;
   ChunkRef c;
   c.offset = offset;
   c.start_ns = std::numeric_limits<int64_t>::max();
