@@ -6,6 +6,8 @@
 #include <map>
 #include <random>
 
+#include <sqlite3.h>
+
 #include "bag_test_util.hpp"
 #include "gcmap/core/error.hpp"
 #include "test_util.hpp"
@@ -152,6 +154,60 @@ TEST(BagErrors, UnknownCompressionIsNamed) {
           << e.what();
     }
   }
+}
+
+}  // namespace
+}  // namespace gcmap::test
+
+namespace gcmap::test {
+namespace {
+
+// rosbag2's per-message zstd compression (compression_mode MESSAGE), and FILE mode refused by name.
+TEST(BagErrors, Db3MessageCompression) {
+  TempDir dir;
+  const std::string bag = dir / "zbag";
+  const PointCloud scan = make_scan(60, 4);
+  {
+    ScanBagWriter w(bag, BagFormat::db3, CloudLayout{});
+    w.write(scan, 50.0);
+    w.close();
+  }
+  const std::string db = bag + "/zbag_0.db3";
+  sqlite3* h = nullptr;
+  ASSERT_EQ(sqlite3_open(db.c_str(), &h), SQLITE_OK);
+  sqlite3_stmt* get = nullptr;
+  sqlite3_prepare_v2(h, "SELECT data FROM messages", -1, &get, nullptr);
+  ASSERT_EQ(sqlite3_step(get), SQLITE_ROW);
+  const std::string packed = compress(Compression::zstd, std::string(static_cast<const char*>(sqlite3_column_blob(get, 0)),
+                                                                     size_t(sqlite3_column_bytes(get, 0))));
+  sqlite3_finalize(get);
+  sqlite3_stmt* put = nullptr;
+  sqlite3_prepare_v2(h, "UPDATE messages SET data = ?", -1, &put, nullptr);
+  sqlite3_bind_blob(put, 1, packed.data(), int(packed.size()), SQLITE_STATIC);
+  ASSERT_EQ(sqlite3_step(put), SQLITE_DONE);
+  sqlite3_finalize(put);
+  sqlite3_close(h);
+  std::string meta = read_file(bag + "/metadata.yaml");
+  const std::string plain = "compression_format: \"\"\n  compression_mode: \"\"";
+  ASSERT_NE(meta.find(plain), std::string::npos);
+  for (const char* mode : {"MESSAGE", "FILE"}) {
+    std::string m = meta;
+    m.replace(m.find(plain), plain.size(), std::string("compression_format: zstd\n  compression_mode: ") + mode);
+    write_file_atomic(bag + "/metadata.yaml", [&](std::ostream& o) { o << m; });
+    if (std::string(mode) == "FILE") {
+      EXPECT_THROW([&] { BagScanSource s(bag); }(), Error);
+      continue;
+    }
+    BagScanSource src(bag);
+    BagScan s;
+    ASSERT_TRUE(src.next(s));
+    EXPECT_EQ(s.cloud.points, finite_points(scan).points);
+  }
+  // The .db3 alone: its messages are compressed, but without metadata.yaml nothing says so.
+  BagScanSource alone(db);
+  BagScan s;
+  EXPECT_FALSE(alone.next(s));
+  EXPECT_EQ(alone.skipped(), 1u);
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <map>
+#include <optional>
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/io/bag_bytes.hpp"
@@ -50,12 +51,15 @@ class McapReader : public BagReader {
     std::vector<uint32_t> ids = channels_of(infos_, name);
     auto load = [this, ids, begin_ns, end_ns](const ChunkRef& c, std::vector<PendingMessage>& out) {
       auto buf = std::make_shared<std::string>();
+      std::optional<std::string_view> records;
       if (c.lone_message) {
         load_record(c.offset, *buf);
-      } else if (!load_chunk(c.offset, *buf)) {
-        return;
+        records = *buf;
+      } else {
+        records = load_chunk(c.offset, *buf);
       }
-      for_each_record(*buf, where(c.offset), [&](uint8_t op, std::string_view body, size_t) {
+      if (!records) return;
+      for_each_record(*records, where(c.offset), [&](uint8_t op, std::string_view body, size_t) {
         if (op != kMessage) return;
         ByteReader r(body, where(c.offset));
         const uint16_t ch = r.u16();
@@ -87,12 +91,13 @@ class McapReader : public BagReader {
     src_->read(offset, 9 + len, out);
   }
 
-  // Decompressed records of the chunk at `offset`; false (with a warning) on a CRC mismatch.
-  bool load_chunk(uint64_t offset, std::string& out) {
-    std::string rec;
-    load_record(offset, rec);
+  // The records of the chunk at `offset`, a view into `out` (uncompressed chunks are used in place);
+  // nullopt (with a warning) on a CRC mismatch.
+  std::optional<std::string_view> load_chunk(uint64_t offset, std::string& out) {
+    std::string packed;
+    load_record(offset, packed);
     const std::string at = where(offset);
-    ByteReader r(rec, at);
+    ByteReader r(packed, at);
     if (r.u8() != kChunk) r.fail("expected a chunk record");
     r.u64();
     r.skip(16);
@@ -105,12 +110,21 @@ class McapReader : public BagReader {
     if (comp == "zstd") c = Compression::zstd;
     else if (comp == "lz4") c = Compression::lz4;
     else if (!comp.empty()) r.fail("unknown compression '" + std::string(comp) + "'");
-    decompress(c, data, usize, true, out, at);
-    if (crc != 0 && crc32(out) != crc) {
-      warn(at + ": chunk with a bad CRC skipped");
-      return false;
+    std::string_view records;
+    if (c == Compression::none) {
+      if (data.size() != usize) r.fail("chunk holds " + std::to_string(data.size()) + " bytes, declares " + std::to_string(usize));
+      const size_t from = size_t(data.data() - packed.data());
+      out = std::move(packed);
+      records = std::string_view(out).substr(from, usize);
+    } else {
+      decompress(c, data, usize, true, out, at);
+      records = out;
     }
-    return true;
+    if (crc != 0 && crc32(records) != crc) {
+      warn(at + ": chunk with a bad CRC skipped");
+      return std::nullopt;
+    }
+    return records;
   }
 
   void parse_schema(std::string_view body, const std::string& at) {
@@ -212,12 +226,13 @@ bool McapReader::read_summary() {
 
 void McapReader::scan_chunk(uint64_t offset, std::map<uint16_t, uint64_t>& counts, bool& any) {
   std::string buf;
-  if (!load_chunk(offset, buf)) return;
+  const std::optional<std::string_view> records = load_chunk(offset, buf);
+  if (!records) return;
   ChunkRef c;
   c.offset = offset;
   c.start_ns = std::numeric_limits<int64_t>::max();
   c.end_ns = std::numeric_limits<int64_t>::min();
-  for_each_record(buf, where(offset), [&](uint8_t op, std::string_view body, size_t) {
+  for_each_record(*records, where(offset), [&](uint8_t op, std::string_view body, size_t) {
     if (op == kSchema) parse_schema(body, where(offset));
     if (op == kChannel) parse_channel(body, where(offset));
     if (op != kMessage) return;
