@@ -217,6 +217,7 @@ TEST(Bag, EmptyBagsAndNonBags) {
     SCOPED_TRACE(c.name);
     const std::string path = dir / ("empty_" + bag_name(c));
     ScanBagWriter(path, c.format, CloudLayout{}, c.options).close();
+    EXPECT_TRUE(is_bag_path(path));
     auto bag = open_bag(path);
     ASSERT_EQ(bag->topics().size(), 1u);
     EXPECT_EQ(bag->topics()[0].message_count, 0u);
@@ -224,6 +225,8 @@ TEST(Bag, EmptyBagsAndNonBags) {
     BagScan s;
     EXPECT_FALSE(src.next(s));
   }
+  EXPECT_FALSE(is_bag_path(dir / "scan.pcd"));
+  EXPECT_FALSE(is_bag_path(dir.path.string()));
   write_file_atomic(dir / "zero.mcap", [](std::ostream&) {});
   expect_error([&] { open_bag(dir / "zero.mcap"); }, "zero.mcap");
   write_file_atomic(dir / "text.bag", [](std::ostream& o) { o << "hello world, not a bag"; });

@@ -2,7 +2,7 @@
 // Reading ROS bags without ROS: ROS 2 MCAP (.mcap) and sqlite3 (.db3 + metadata.yaml, a folder), ROS 1
 // (.bag v2.0). Streaming: messages are read chunk by chunk in time order, memory bounded by the chunks
 // whose time ranges overlap, whatever the file size. Malformed input throws Error naming the file;
-// a truncated file or a chunk with a bad CRC is read as far as it is intact, with one warning.
+// a truncated file is read as far as it is intact and a chunk with a bad CRC is skipped, with a warning.
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -20,7 +20,7 @@ const char* bag_format_name(BagFormat f);
 struct BagTopic {
   std::string name;
   std::string type;          // as stored: "sensor_msgs/msg/PointCloud2" (ROS 2) or "sensor_msgs/PointCloud2"
-  MessageEncoding encoding;  // how its messages are serialized
+  MessageEncoding encoding = MessageEncoding::other;  // how its messages are serialized
   uint64_t message_count = 0;
 };
 

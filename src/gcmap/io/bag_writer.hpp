@@ -23,7 +23,7 @@ class BagWriter {
   virtual ~BagWriter() = default;
   // `type` in the ROS 2 spelling ("sensor_msgs/msg/PointCloud2"); a ROS 1 bag stores "sensor_msgs/PointCloud2".
   virtual uint32_t add_topic(const std::string& topic, const std::string& type) = 0;
-  // `data` serialized as message_encoding(format) requires; record times should not decrease.
+  // `data` serialized as message_encoding(format) requires; record times in any order (readers sort).
   virtual void write(uint32_t topic, int64_t time_ns, std::string_view data) = 0;
   // Finishes the file (index, summary) and moves it into place. Without close() nothing is left behind.
   virtual void close() = 0;
