@@ -64,7 +64,12 @@ void add_map(CLI::App& app, Runner& run) {
   auto opt = std::make_shared<MapRunOptions>();
   auto ov = std::make_shared<Overrides>();
   auto* cmd = app.add_subcommand("map", "Map a LiDAR sequence: odometry, submaps, global matching-cost optimization");
-  cmd->add_option("input", opt->input, "KITTI sequence folder (velodyne/*.bin ...) or a folder of .bin/.pcd/.ply scans")->required();
+  cmd->add_option("input", opt->input,
+                  "KITTI sequence folder (velodyne/*.bin ...), a folder of .bin/.pcd/.ply scans, or a ROS bag (.mcap, .db3 or its folder, .bag)")
+      ->required();
+  cmd->add_option("--topic", opt->topic, "Bags: the point-cloud topic (default: the only one)");
+  cmd->add_option("--start-time", opt->start_time, "Bags: start this many seconds after the first message");
+  cmd->add_option("--duration", opt->duration, "Bags: map this many seconds (0 = to the end)");
   cmd->add_option("-o,--output", opt->output, "Output folder")->required();
   cmd->add_option("--initial-trajectory", opt->initial_trajectory, "KITTI or TUM poses to use instead of the built-in odometry");
   cmd->add_option("--start", opt->start, "First scan index")->capture_default_str();

@@ -55,6 +55,7 @@ int main(int argc, char** argv) {
   gcmap::cli::add_render(app, run);
   gcmap::cli::add_plot(app, run);
   gcmap::cli::add_view(app, run);
+  gcmap::cli::add_bag_info(app, run);
 
   try {
     app.parse(argc, argv);

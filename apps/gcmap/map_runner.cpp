@@ -10,6 +10,7 @@
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/cuda/cuda_backend.hpp"
+#include "gcmap/io/bag_scans.hpp"
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/sequence.hpp"
@@ -67,12 +68,36 @@ class SignalScope {
   struct sigaction old_int_ {}, old_term_ {};
 };
 
-void write_outputs(const MappingPipeline& pipeline, const FolderScanSource& source, const MapRunOptions& o,
-                   int signal) {
+// A sequence folder or a ROS bag.
+struct Input {
+  std::unique_ptr<ScanSource> source;
+  bool kitti_hdl64 = false;
+  int frame_offset = 0;  // added to frame numbers in graph.json
+};
+
+Input open_input(const MapRunOptions& o) {
+  if (o.start < 0) throw Error("--start: must be >= 0");
+  if (o.max_frames < 0) throw Error("--max-frames: must be >= 0");
+  if (is_bag_path(o.input)) {
+    if (o.start_time < 0 || o.duration < 0) throw Error("--start-time and --duration must be >= 0");
+    BagScanOptions bo;
+    bo.topic = o.topic;
+    bo.start_time = o.start_time;
+    if (o.duration > 0) bo.duration = o.duration;
+    return {std::make_unique<BagScanRecords>(o.input, bo, o.start, o.max_frames), false, o.start};
+  }
+  if (!o.topic.empty() || o.start_time != 0 || o.duration != 0)
+    throw Error("--topic, --start-time and --duration apply to bags, not to " + o.input);
+  auto folder = std::make_unique<FolderScanSource>(o.input, o.start, o.max_frames);
+  const bool kitti = folder->kitti_hdl64();
+  return {std::move(folder), kitti, o.start};
+}
+
+void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapRunOptions& o, int signal) {
   const fs::path out(o.output);
   Trajectory traj;
   traj.poses = pipeline.trajectory();
-  for (size_t f = 0; f < traj.poses.size(); ++f) traj.stamps.push_back(source.stamp(f));
+  traj.stamps = pipeline.stamps();
   traj.format = TrajectoryFormat::kitti;
   write_trajectory((out / "trajectory.kitti").string(), traj);
   traj.format = TrajectoryFormat::tum;
@@ -83,7 +108,7 @@ void write_outputs(const MappingPipeline& pipeline, const FolderScanSource& sour
   const PointCloud map = pipeline.map(o.config.output.map_resolution);
   write_ply((out / "map.ply").string(), map);
   if (o.config.output.pcd) write_pcd((out / "map.pcd").string(), map);
-  const Json graph = graph_json(pipeline, source.start());
+  const Json graph = graph_json(pipeline, frame_offset);
   write_file_atomic((out / "graph.json").string(), [&](std::ostream& s) { s << graph.dump() << "\n"; });
   Json stats = stats_json(pipeline);
   stats["partial"] = signal != 0;
@@ -105,7 +130,8 @@ std::string progress_detail(const MappingPipeline& p) {
 
 MapRunResult run_mapping(const MapRunOptions& o) {
   o.config.validate();
-  FolderScanSource source(o.input, o.start, o.max_frames);
+  Input input = open_input(o);
+  ScanSource& source = *input.source;
   check_writable(o.output);
   Trajectory initial;
   if (!o.initial_trajectory.empty()) {
@@ -116,7 +142,7 @@ MapRunResult run_mapping(const MapRunOptions& o) {
   }
 
   PipelineOptions po;
-  po.kitti_hdl64 = source.kitti_hdl64();
+  po.kitti_hdl64 = input.kitti_hdl64;
   MappingPipeline pipeline(o.config, cuda::make_backend(o.device), po);
   Progress progress("frame", source.size_hint(), o.quiet);
   MappingPipeline::RunOptions ro;
@@ -136,7 +162,7 @@ MapRunResult run_mapping(const MapRunOptions& o) {
     }
     pipeline.finish(signal ? std::optional<int>(g_signals > 1 ? 0 : 5) : std::nullopt);
   }
-  write_outputs(pipeline, source, o, signal);
+  write_outputs(pipeline, input.frame_offset, o, signal);
 
   MapRunResult r;
   r.frames = pipeline.num_frames();

@@ -10,6 +10,8 @@ struct MapRunOptions {
   std::string input, output, initial_trajectory;
   MappingConfig config;
   int start = 0, max_frames = 0;
+  std::string topic;                      // bags: the point-cloud topic (empty: the only one)
+  double start_time = 0.0, duration = 0.0;  // bags: s after the first message; duration 0: to the end
   Device device = Device::automatic;
   bool quiet = false;
 };

@@ -6,6 +6,7 @@
 
 #include <cmath>
 
+#include "gcmap/core/deskew.hpp"
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/se3.hpp"
 #include "gcmap/mapping/preprocess_scan.hpp"
@@ -33,19 +34,6 @@ void remove_moving_labels(PointCloud& c) {
     keep[i] = !(cls >= 252 && cls <= 259);
   }
   c.filter(keep);
-}
-
-// Moves every point, fired at its own time t, into the frame of the sensor at t = 0, for a sensor
-// moving with the constant body-frame twist xi (per second): T_0_t = exp(t xi).
-void deskew(PointCloud& c, const Vector6d& xi) {
-  tbb::parallel_for(size_t{0}, c.size(), [&](size_t i) {
-    const Eigen::Isometry3d T = se3_exp(static_cast<double>(c.times[i]) * xi);
-    c.points[i] = (T * c.points[i].cast<double>()).cast<float>();
-    if (c.has_covs()) {
-      const Eigen::Matrix3f R = T.linear().cast<float>();
-      c.covs[i] = R * c.covs[i] * R.transpose();
-    }
-  });
 }
 
 }  // namespace

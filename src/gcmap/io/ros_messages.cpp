@@ -1,0 +1,220 @@
+#include "gcmap/io/ros_messages.hpp"
+
+#include "gcmap/core/error.hpp"
+#include "gcmap/io/bag_bytes.hpp"
+
+namespace gcmap {
+
+namespace {
+
+// ROS 1: packed little endian, strings without terminator. CDR: a 4-byte encapsulation header, then
+// every primitive aligned to its size (relative to the end of that header), strings NUL-terminated.
+class Deserializer {
+ public:
+  Deserializer(std::string_view msg, MessageEncoding enc, std::string_view where)
+      : r_(msg, std::string(where)), cdr_(enc == MessageEncoding::cdr) {
+    if (enc == MessageEncoding::other) r_.fail("unsupported message encoding (neither ros1 nor cdr)");
+    if (!cdr_) return;
+    const uint8_t b0 = r_.u8(), b1 = r_.u8();
+    r_.skip(2);
+    if (b0 != 0 || b1 > 1) r_.fail("unknown CDR encapsulation " + std::to_string(b0) + "," + std::to_string(b1));
+    swap_ = b1 == 0;  // CDR_BE
+  }
+  template <typename T>
+  T num() {
+    align(sizeof(T));
+    T v;
+    std::memcpy(&v, r_.bytes(sizeof(T)).data(), sizeof(T));
+    return swap_ ? byteswap(v) : v;
+  }
+  std::string_view str() {
+    std::string_view s = r_.bytes(num<uint32_t>());
+    if (cdr_ && !s.empty() && s.back() == '\0') s.remove_suffix(1);
+    return s;
+  }
+  std::string_view bytes(uint64_t n) { return r_.bytes(n); }
+  // An array length, checked against the bytes left (each element takes at least min_bytes).
+  uint32_t count(size_t min_bytes) {
+    const uint32_t n = num<uint32_t>();
+    if (uint64_t(n) * min_bytes > r_.remaining()) r_.fail("array of " + std::to_string(n) + " elements exceeds the message");
+    return n;
+  }
+  int64_t header_stamp(std::string& frame_id) {
+    if (!cdr_) num<uint32_t>();  // seq
+    const int64_t sec = cdr_ ? int64_t(num<int32_t>()) : int64_t(num<uint32_t>());
+    const uint32_t nsec = num<uint32_t>();
+    frame_id = std::string(str());
+    return sec * 1000000000 + nsec;
+  }
+  void fail(const std::string& what) const { r_.fail(what); }
+
+ private:
+  void align(size_t n) {
+    if (cdr_ && r_.pos() > 4) r_.skip((n - (r_.pos() - 4) % n) % n);
+  }
+  ByteReader r_;
+  bool cdr_;
+  bool swap_ = false;
+};
+
+class Serializer {
+ public:
+  Serializer(MessageEncoding enc, bool big_endian) : cdr_(enc == MessageEncoding::cdr), swap_(cdr_ && big_endian) {
+    if (cdr_) out_ = std::string{0, char(big_endian ? 0 : 1), 0, 0};
+  }
+  template <typename T>
+  void num(T v) {
+    if (cdr_) out_.append((sizeof(T) - (out_.size() - 4) % sizeof(T)) % sizeof(T), '\0');
+    put_le(out_, swap_ ? byteswap(v) : v);
+  }
+  void str(std::string_view s) {
+    num<uint32_t>(uint32_t(s.size() + cdr_));
+    out_.append(s);
+    if (cdr_) out_.push_back('\0');
+  }
+  void bytes(std::string_view s) { out_.append(s); }
+  void header(int64_t stamp_ns, const std::string& frame_id) {
+    if (!cdr_) num<uint32_t>(0);
+    const int64_t sec = stamp_ns >= 0 ? stamp_ns / 1000000000 : (stamp_ns - 999999999) / 1000000000;
+    num<int32_t>(int32_t(sec));
+    num<uint32_t>(uint32_t(stamp_ns - sec * 1000000000));
+    str(frame_id);
+  }
+  std::string take() { return std::move(out_); }
+
+ private:
+  std::string out_;
+  bool cdr_, swap_;
+};
+
+}  // namespace
+
+size_t point_field_size(uint8_t datatype) {
+  static constexpr size_t sizes[] = {0, 1, 1, 2, 2, 4, 4, 4, 8};
+  return datatype < 9 ? sizes[datatype] : 0;
+}
+
+const char* point_field_type_name(uint8_t datatype) {
+  static constexpr const char* names[] = {"?", "int8", "uint8", "int16", "uint16", "int32", "uint32", "float32", "float64"};
+  return datatype < 9 ? names[datatype] : "?";
+}
+
+PointCloud2Msg decode_pointcloud2(std::string_view msg, MessageEncoding enc, std::string_view where) {
+  Deserializer d(msg, enc, where);
+  PointCloud2Msg m;
+  m.stamp_ns = d.header_stamp(m.frame_id);
+  m.height = d.num<uint32_t>();
+  m.width = d.num<uint32_t>();
+  const uint32_t n = d.count(13);
+  m.fields.resize(n);
+  for (PointField& f : m.fields) {
+    f.name = std::string(d.str());
+    f.offset = d.num<uint32_t>();
+    f.datatype = d.num<uint8_t>();
+    f.count = d.num<uint32_t>();
+  }
+  m.is_bigendian = d.num<uint8_t>() != 0;
+  m.point_step = d.num<uint32_t>();
+  m.row_step = d.num<uint32_t>();
+  m.data = d.bytes(d.num<uint32_t>());
+  m.is_dense = d.num<uint8_t>() != 0;
+  return m;
+}
+
+std::string encode_pointcloud2(const PointCloud2Msg& m, MessageEncoding enc, bool big_endian_cdr) {
+  Serializer s(enc, big_endian_cdr);
+  s.header(m.stamp_ns, m.frame_id);
+  s.num<uint32_t>(m.height);
+  s.num<uint32_t>(m.width);
+  s.num<uint32_t>(uint32_t(m.fields.size()));
+  for (const PointField& f : m.fields) {
+    s.str(f.name);
+    s.num<uint32_t>(f.offset);
+    s.num<uint8_t>(f.datatype);
+    s.num<uint32_t>(f.count);
+  }
+  s.num<uint8_t>(m.is_bigendian);
+  s.num<uint32_t>(m.point_step);
+  s.num<uint32_t>(m.row_step);
+  s.num<uint32_t>(uint32_t(m.data.size()));
+  s.bytes(m.data);
+  s.num<uint8_t>(m.is_dense);
+  return s.take();
+}
+
+LivoxMsg decode_livox(std::string_view msg, MessageEncoding enc, std::string_view where) {
+  Deserializer d(msg, enc, where);
+  LivoxMsg m;
+  m.stamp_ns = d.header_stamp(m.frame_id);
+  m.timebase = d.num<uint64_t>();
+  d.num<uint32_t>();  // point_num repeats the array length
+  m.lidar_id = d.num<uint8_t>();
+  d.bytes(3);
+  m.points.resize(d.count(19));
+  for (LivoxPoint& p : m.points) {
+    p.offset_time = d.num<uint32_t>();
+    p.x = d.num<float>();
+    p.y = d.num<float>();
+    p.z = d.num<float>();
+    p.reflectivity = d.num<uint8_t>();
+    p.tag = d.num<uint8_t>();
+    p.line = d.num<uint8_t>();
+  }
+  return m;
+}
+
+std::string encode_livox(const LivoxMsg& m, MessageEncoding enc) {
+  Serializer s(enc, false);
+  s.header(m.stamp_ns, m.frame_id);
+  s.num<uint64_t>(m.timebase);
+  s.num<uint32_t>(uint32_t(m.points.size()));
+  s.num<uint8_t>(m.lidar_id);
+  s.bytes(std::string(3, '\0'));
+  s.num<uint32_t>(uint32_t(m.points.size()));
+  for (const LivoxPoint& p : m.points) {
+    s.num<uint32_t>(p.offset_time);
+    s.num<float>(p.x);
+    s.num<float>(p.y);
+    s.num<float>(p.z);
+    s.num<uint8_t>(p.reflectivity);
+    s.num<uint8_t>(p.tag);
+    s.num<uint8_t>(p.line);
+  }
+  return s.take();
+}
+
+bool is_pointcloud2_type(std::string_view type) {
+  return type == "sensor_msgs/PointCloud2" || type == "sensor_msgs/msg/PointCloud2";
+}
+
+bool is_livox_type(std::string_view type) {
+  return type == "livox_ros_driver/CustomMsg" || type == "livox_ros_driver2/CustomMsg" ||
+         type == "livox_ros_driver/msg/CustomMsg" || type == "livox_ros_driver2/msg/CustomMsg";
+}
+
+std::string message_definition(std::string_view type) {
+  static const std::string header =
+      "MSG: std_msgs/Header\nuint32 seq\ntime stamp\nstring frame_id\n";
+  if (is_pointcloud2_type(type))
+    return "std_msgs/Header header\nuint32 height\nuint32 width\nsensor_msgs/PointField[] fields\nbool is_bigendian\n"
+           "uint32 point_step\nuint32 row_step\nuint8[] data\nbool is_dense\n"
+           "================================================================================\n" +
+           header +
+           "================================================================================\n"
+           "MSG: sensor_msgs/PointField\nuint8 INT8=1\nuint8 UINT8=2\nuint8 INT16=3\nuint8 UINT16=4\nuint8 INT32=5\n"
+           "uint8 UINT32=6\nuint8 FLOAT32=7\nuint8 FLOAT64=8\nstring name\nuint32 offset\nuint8 datatype\nuint32 count\n";
+  if (is_livox_type(type))
+    return "std_msgs/Header header\nuint64 timebase\nuint32 point_num\nuint8 lidar_id\nuint8[3] rsvd\nCustomPoint[] points\n"
+           "================================================================================\n" +
+           header +
+           "================================================================================\n"
+           "MSG: livox_ros_driver/CustomPoint\nuint32 offset_time\nfloat32 x\nfloat32 y\nfloat32 z\nuint8 reflectivity\n"
+           "uint8 tag\nuint8 line\n";
+  return "";
+}
+
+std::string message_md5(std::string_view type) {
+  return is_pointcloud2_type(type) ? "1158d486dd51d683ce2f1be655c3c181" : "*";
+}
+
+}  // namespace gcmap

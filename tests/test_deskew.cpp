@@ -1,0 +1,80 @@
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "gcmap/core/deskew.hpp"
+#include "gcmap/core/error.hpp"
+#include "test_util.hpp"
+
+namespace gcmap::test {
+namespace {
+
+// A static scene seen by a sensor moving at constant velocity during a 0.1 s sweep: each point is
+// measured in the sensor frame of its own time. Deskewing restores the scene in the frame at t = 0.
+struct Sweep {
+  PointCloud scene;     // in the frame at t = 0
+  PointCloud measured;  // as the sensor reports it
+};
+
+Sweep make_sweep(const Vector6d& velocity, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-40.f, 40.f);
+  Sweep s;
+  const int n = 2000;
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3f p(u(rng), u(rng), u(rng) * 0.2f);
+    const float t = 0.1f * float(i / 10) / float(n / 10);  // columns of 10 points share a time
+    const Eigen::Isometry3d T_0_t = se3_exp(double(t) * velocity);
+    s.scene.points.push_back(p);
+    s.measured.points.push_back((T_0_t.inverse() * p.cast<double>()).cast<float>());
+    s.measured.times.push_back(t);
+  }
+  return s;
+}
+
+double max_error(const PointCloud& a, const PointCloud& b) {
+  double e = 0;
+  for (size_t i = 0; i < a.size(); ++i) e = std::max(e, double((a.points[i] - b.points[i]).norm()));
+  return e;
+}
+
+TEST(Deskew, RestoresStaticSceneFromMovingSensor) {
+  Vector6d v;
+  v << 0.1, -0.05, 0.6, 15.0, 0.8, -0.3;  // turning at 0.6 rad/s while driving at 15 m/s
+  Sweep s = make_sweep(v, 3);
+  EXPECT_GT(max_error(s.measured, s.scene), 1.0);  // 1.5 m smear before
+  PointCloud by_velocity = s.measured;
+  deskew(by_velocity, v);
+  EXPECT_LT(max_error(by_velocity, s.scene), 1e-4);
+
+  // The same from the sweep's begin-to-end motion.
+  PointCloud by_pose = s.measured;
+  deskew(by_pose, se3_exp(0.1 * v), 0.1);
+  EXPECT_LT(max_error(by_pose, s.scene), 1e-4);
+  EXPECT_EQ(by_pose.times, s.measured.times);
+}
+
+TEST(Deskew, RotatesCovariancesAndRejectsBadInput) {
+  Vector6d v = Vector6d::Zero();
+  v[2] = M_PI / 2;  // 90 deg/s about z
+  PointCloud c;
+  c.points = {Eigen::Vector3f(1, 0, 0)};
+  c.times = {1.0f};
+  Eigen::Matrix3f cov = Eigen::Matrix3f::Zero();
+  cov(0, 0) = 1;
+  c.covs = {cov};
+  deskew(c, v);
+  EXPECT_LT((c.points[0] - Eigen::Vector3f(0, 1, 0)).norm(), 1e-6);
+  EXPECT_NEAR(c.covs[0](1, 1), 1.f, 1e-6);
+
+  PointCloud no_times;
+  no_times.points = {Eigen::Vector3f(1, 2, 3)};
+  deskew(no_times, v);
+  EXPECT_EQ(no_times.points[0], Eigen::Vector3f(1, 2, 3));
+  EXPECT_THROW(deskew(c, Eigen::Isometry3d::Identity(), 0.0), Error);
+  c.times.push_back(0.f);
+  EXPECT_THROW(deskew(c, v), Error);
+}
+
+}  // namespace
+}  // namespace gcmap::test
