@@ -451,11 +451,25 @@ void write_pcd(const std::string& path, const PointCloud& cloud) {
   });
 }
 
-void write_point_cloud(const std::string& path, const PointCloud& cloud) {
+void write_bin(const std::string& path, const PointCloud& cloud, BinFields fields) {
+  static_assert(std::endian::native == std::endian::little, "writer assumes a little-endian host");
+  write_file_atomic(path, [&](std::ostream& out) {
+    std::vector<float> buf;
+    buf.reserve(cloud.size() * 4);
+    for (size_t i = 0; i < cloud.size(); ++i) {
+      buf.insert(buf.end(), cloud.points[i].data(), cloud.points[i].data() + 3);
+      if (fields == BinFields::xyzi) buf.push_back(cloud.has_intensities() ? cloud.intensities[i] : 0.0f);
+    }
+    out.write(reinterpret_cast<const char*>(buf.data()), static_cast<std::streamsize>(buf.size() * sizeof(float)));
+  });
+}
+
+void write_point_cloud(const std::string& path, const PointCloud& cloud, BinFields bin_fields) {
   const std::string ext = extension(path);
   if (ext == ".ply") write_ply(path, cloud);
   else if (ext == ".pcd") write_pcd(path, cloud);
-  else throw Error(path + ": cannot write format '" + ext + "' (use .ply or .pcd)");
+  else if (ext == ".bin") write_bin(path, cloud, bin_fields);
+  else throw Error(path + ": cannot write format '" + ext + "' (use .ply, .pcd or .bin)");
 }
 
 }  // namespace gcmap
