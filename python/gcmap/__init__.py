@@ -47,7 +47,7 @@ class _Section:
         self._config.set(self._key(field), value)
 
     def __dir__(self):
-        return [k.split(".", 1)[1] for k in _KEYS if k.startswith(self._name + ".")]
+        return [k.split(".", 1)[1] for k in MappingConfig.keys() if k.startswith(self._name + ".")]
 
     def __repr__(self):
         fields = ", ".join(f"{f}={getattr(self, f)!r}" for f in self.__dir__())
@@ -55,7 +55,7 @@ class _Section:
 
 
 def _section_property(name):
-    fields = ", ".join(k.split(".", 1)[1] for k in _KEYS if k.startswith(name + "."))
+    fields = ", ".join(k.split(".", 1)[1] for k in MappingConfig.keys() if k.startswith(name + "."))
     return property(lambda self: _Section(self, name), doc=f"The '{name}' section: {fields}.")
 
 

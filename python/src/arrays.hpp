@@ -46,6 +46,8 @@ PointCloud to_cloud(py::handle array, const char* what, py::handle times = py::n
 Eigen::Isometry3d to_pose(py::handle array, const char* what);
 // (n,4,4).
 std::vector<Eigen::Isometry3d> to_poses(py::handle array, const char* what);
+// An optional array argument as a handle (None when absent).
+inline py::handle or_none(const std::optional<py::array>& a) { return a ? py::handle(*a) : py::handle(Py_None); }
 
 // (N,3) float32 owning the cloud's points; `intensities` (N,) float32 likewise when wanted.
 py::array points_array(PointCloud&& cloud, py::object* intensities = nullptr);

@@ -33,9 +33,9 @@ Raises FileNotFoundError for a missing file and ValueError for a malformed one.)
 
   m.def(
       "write_points",
-      [](const std::string& path, py::handle points, py::handle intensities, const std::string& bin_fields) {
+      [](const std::string& path, const py::array& points, const std::optional<py::array>& intensities, const std::string& bin_fields) {
         const BinFields fields = parse_bin_fields(bin_fields);
-        const PointCloud cloud = to_cloud(points, "points", py::none(), intensities);
+        const PointCloud cloud = to_cloud(points, "points", py::none(), or_none(intensities));
         py::gil_scoped_release release;
         write_point_cloud(path, cloud, fields);
       },
@@ -59,11 +59,11 @@ temporary name and renamed, so a reader never sees half of it.)");
 
   m.def(
       "write_trajectory",
-      [](const std::string& path, py::handle poses, const std::string& format, py::handle stamps) {
+      [](const std::string& path, const py::array& poses, const std::string& format, const std::optional<std::vector<double>>& stamps) {
         Trajectory t;
         t.format = parse_trajectory_format(format);
         t.poses = to_poses(poses, "poses");
-        if (!stamps.is_none()) t.stamps = py::cast<std::vector<double>>(stamps);
+        if (stamps) t.stamps = *stamps;
         if (t.format == TrajectoryFormat::tum && t.stamps.size() != t.poses.size())
           throw Error("stamps: the tum format needs one stamp per pose");
         if (t.format == TrajectoryFormat::named) throw Error("format: write kitti or tum");

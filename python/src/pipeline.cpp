@@ -34,10 +34,11 @@ class Pipeline {
     return f(*pipeline_);
   }
 
-  py::tuple add_scan(py::handle points, double stamp, py::handle times, py::handle T_odom) {
-    PointCloud cloud = to_cloud(points, "points", times);
+  py::tuple add_scan(const py::array& points, double stamp, const std::optional<py::array>& times,
+                     const std::optional<py::array>& T_odom) {
+    PointCloud cloud = to_cloud(points, "points", or_none(times));
     std::optional<Eigen::Isometry3d> odom;
-    if (!T_odom.is_none()) odom = to_pose(T_odom, "T_odom");
+    if (T_odom) odom = to_pose(*T_odom, "T_odom");
     const Frame frame = locked([&](MappingPipeline& p) {
       if (p.finished()) throw StateError("add_scan: the pipeline is finished (finish() was called)");
       return p.add_scan(std::move(cloud), stamp, odom);

@@ -1,5 +1,6 @@
 // Pairwise registration as `gcmap register` does it: downsampling, covariances, then VGICP against
 // the target's voxel map (on the CPU, or through the GPU backend as a two-pose graph) or GICP.
+#include <pybind11/stl.h>
 #include <tbb/global_control.h>
 
 #include "arrays.hpp"
@@ -121,13 +122,13 @@ void bind_registration(py::module_& m) {
 
   m.def(
       "register",
-      [](py::handle target, py::handle source, py::handle init, double voxel, double downsample, const std::string& method,
+      [](const py::array& target, const py::array& source, const std::optional<py::array>& init, double voxel, double downsample, const std::string& method,
          int max_iterations, int threads, const std::string& device) {
         const PairOptions o = pair_options(voxel, downsample, method, max_iterations, threads, device);
         const PointCloud t = to_cloud(target, "target"), s = to_cloud(source, "source");
         if (t.size() < 10) throw Error("target: too few finite points (" + std::to_string(t.size()) + ")");
         if (s.size() < 10) throw Error("source: too few finite points (" + std::to_string(s.size()) + ")");
-        const Eigen::Isometry3d T_init = init.is_none() ? Eigen::Isometry3d::Identity() : to_pose(init, "init");
+        const Eigen::Isometry3d T_init = init ? to_pose(*init, "init") : Eigen::Isometry3d::Identity();
         py::gil_scoped_release release;
         return register_pair(t, s, T_init, o);
       },

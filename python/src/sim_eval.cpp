@@ -77,7 +77,7 @@ void bind_sim_eval(py::module_& m) {
   py::module_ eval = m.def_submodule("eval", "Trajectory and map metrics.");
   eval.def(
       "kitti",
-      [](py::handle gt, py::handle est) {
+      [](const py::array& gt, const py::array& est) {
         const auto [g, e] = trajectories(gt, est);
         const KittiError k = kitti_relative_error(g, e);
         py::list per_length;
@@ -94,7 +94,7 @@ translation_percent, rotation_deg_per_100m, num_segments and per_length. A drive
 has no segment (num_segments 0).)");
   eval.def(
       "ate",
-      [](py::handle gt, py::handle est) {
+      [](const py::array& gt, const py::array& est) {
         const auto [g, e] = trajectories(gt, est);
         const AbsoluteError a = absolute_trajectory_error(g, e);
         return py::dict(py::arg("rmse") = a.rmse, py::arg("mean") = a.mean, py::arg("max") = a.max,
@@ -104,7 +104,7 @@ has no segment (num_segments 0).)");
       "Absolute trajectory error in m after SE(3) alignment of est onto gt: a dict with rmse, mean, max, T_gt_est.");
   eval.def(
       "rpe",
-      [](py::handle gt, py::handle est) {
+      [](const py::array& gt, const py::array& est) {
         const auto [g, e] = trajectories(gt, est);
         const RelativePoseError r = relative_pose_error(g, e);
         return py::dict(py::arg("translation_rmse") = r.translation_rmse, py::arg("translation_mean") = r.translation_mean,
@@ -114,7 +114,7 @@ has no segment (num_segments 0).)");
       py::arg("gt"), py::arg("est"), "Frame-to-frame relative pose error (m, deg): a dict of rmse, mean and max.");
   eval.def(
       "mme",
-      [](py::handle points, double radius, int min_neighbors) {
+      [](const py::array& points, double radius, int min_neighbors) {
         if (!(radius > 0)) throw Error("radius: must be positive");
         if (min_neighbors < 4) throw Error("min_neighbors: must be at least 4");
         const PointCloud map = to_cloud(points, "points");
