@@ -7,7 +7,8 @@ cd "$(dirname "$0")/.."
 packages=(build-essential cmake pkg-config libeigen3-dev libtbb-dev libnanoflann-dev
   libcli11-dev libyaml-cpp-dev libspdlog-dev libgtest-dev libbenchmark-dev
   libcairo2-dev libpng-dev libjs-three
-  libzstd-dev liblz4-dev libbz2-dev libsqlite3-dev)
+  libzstd-dev liblz4-dev libbz2-dev libsqlite3-dev
+  pybind11-dev python3-dev python3-numpy python3-pytest)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -76,6 +76,22 @@ TEST(PointCloudIO, KittiAndXyzBin) {
   expect_error(dir / "b.bin", "not a multiple of 16");
 }
 
+TEST(PointCloudIO, BinRoundTrip) {
+  test::TempDir dir;
+  const PointCloud c = sample_cloud();
+  write_point_cloud(dir / "a.bin", c);
+  expect_same(c, read_point_cloud(dir / "a.bin"));
+  write_point_cloud(dir / "b.bin", c, BinFields::xyz);
+  EXPECT_EQ(std::filesystem::file_size(dir / "b.bin"), c.size() * 12);
+  PointCloud no_i = c;
+  no_i.intensities.clear();
+  expect_same(no_i, read_point_cloud(dir / "b.bin", BinFields::xyz));
+  write_point_cloud(dir / "c.bin", no_i);  // KITTI records: intensity 0
+  const PointCloud back = read_point_cloud(dir / "c.bin");
+  ASSERT_EQ(back.intensities.size(), c.size());
+  EXPECT_EQ(back.intensities.front(), 0.0f);
+}
+
 TEST(PointCloudIO, AsciiFormatsAnyFieldOrderAndNaNDropped) {
   test::TempDir dir;
   write_bytes(dir / "a.pcd",

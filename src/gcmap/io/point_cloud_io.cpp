@@ -417,13 +417,13 @@ PointCloud read_point_cloud(const std::string& path, BinFields bin_fields) {
 }
 
 namespace {
-void write_records(std::ostream& out, const PointCloud& cloud) {
-  const bool with_i = cloud.has_intensities();
+// float32 x y z records, with intensity when with_i (0 where the cloud has none).
+void write_records(std::ostream& out, const PointCloud& cloud, bool with_i) {
   std::vector<float> buf;
   buf.reserve(cloud.size() * 4);
   for (size_t i = 0; i < cloud.size(); ++i) {
     buf.insert(buf.end(), cloud.points[i].data(), cloud.points[i].data() + 3);
-    if (with_i) buf.push_back(cloud.intensities[i]);
+    if (with_i) buf.push_back(cloud.has_intensities() ? cloud.intensities[i] : 0.0f);
   }
   out.write(reinterpret_cast<const char*>(buf.data()), static_cast<std::streamsize>(buf.size() * sizeof(float)));
 }
@@ -436,7 +436,7 @@ void write_ply(const std::string& path, const PointCloud& cloud) {
         << "\nproperty float x\nproperty float y\nproperty float z\n";
     if (cloud.has_intensities()) out << "property float intensity\n";
     out << "end_header\n";
-    write_records(out, cloud);
+    write_records(out, cloud, cloud.has_intensities());
   });
 }
 
@@ -447,15 +447,21 @@ void write_pcd(const std::string& path, const PointCloud& cloud) {
         << "\nSIZE 4 4 4" << (with_i ? " 4" : "") << "\nTYPE F F F" << (with_i ? " F" : "") << "\nCOUNT 1 1 1"
         << (with_i ? " 1" : "") << "\nWIDTH " << cloud.size() << "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS "
         << cloud.size() << "\nDATA binary\n";
-    write_records(out, cloud);
+    write_records(out, cloud, cloud.has_intensities());
   });
 }
 
-void write_point_cloud(const std::string& path, const PointCloud& cloud) {
+void write_bin(const std::string& path, const PointCloud& cloud, BinFields fields) {
+  static_assert(std::endian::native == std::endian::little, "writer assumes a little-endian host");
+  write_file_atomic(path, [&](std::ostream& out) { write_records(out, cloud, fields == BinFields::xyzi); });
+}
+
+void write_point_cloud(const std::string& path, const PointCloud& cloud, BinFields bin_fields) {
   const std::string ext = extension(path);
   if (ext == ".ply") write_ply(path, cloud);
   else if (ext == ".pcd") write_pcd(path, cloud);
-  else throw Error(path + ": cannot write format '" + ext + "' (use .ply or .pcd)");
+  else if (ext == ".bin") write_bin(path, cloud, bin_fields);
+  else throw Error(path + ": cannot write format '" + ext + "' (use .ply, .pcd or .bin)");
 }
 
 }  // namespace gcmap

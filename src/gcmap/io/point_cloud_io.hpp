@@ -17,7 +17,9 @@ PointCloud read_point_cloud(const std::string& path, BinFields bin_fields = BinF
 // Binary PLY / binary PCD with x y z and intensity when present, written atomically.
 void write_ply(const std::string& path, const PointCloud& cloud);
 void write_pcd(const std::string& path, const PointCloud& cloud);
-void write_point_cloud(const std::string& path, const PointCloud& cloud);  // by extension
+// Raw float32 records in the given layout (intensity 0 where the cloud has none), written atomically.
+void write_bin(const std::string& path, const PointCloud& cloud, BinFields fields = BinFields::xyzi);
+void write_point_cloud(const std::string& path, const PointCloud& cloud, BinFields bin_fields = BinFields::xyzi);  // by extension
 
 // LZF as used by PCD binary_compressed. Throws on corrupt input.
 std::string lzf_decompress(const std::string& in, size_t expected_size);

@@ -2,8 +2,10 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <cmath>
 #include <functional>
 #include <map>
+#include <optional>
 #include <sstream>
 
 #include "gcmap/core/error.hpp"
@@ -196,6 +198,72 @@ void MappingConfig::validate() const {
   need(localize.min_inlier_fraction > 0 && localize.min_inlier_fraction <= 1, "localize.min_inlier_fraction must be in (0, 1]");
   need(localize.relocalize_every >= 1, "localize.relocalize_every must be >= 1");
   need(output.map_resolution > 0, "output.map_resolution must be positive");
+}
+
+namespace {
+
+std::string describe(const MappingConfig::Value& value) {
+  if (const auto* b = std::get_if<bool>(&value)) return *b ? "true" : "false";
+  if (const auto* i = std::get_if<int>(&value)) return std::to_string(*i);
+  if (const auto* d = std::get_if<double>(&value)) {
+    std::ostringstream out;
+    out << *d;
+    return out.str();
+  }
+  return "'" + std::get<std::string>(value) + "'";
+}
+
+template <typename T>
+T convert(const MappingConfig::Value& value, const std::string& key) {
+  const auto wrong = [&](const char* what) { return Error(key + " must be " + what + ", got " + describe(value)); };
+  if constexpr (std::is_same_v<T, bool>) {
+    if (const auto* b = std::get_if<bool>(&value)) return *b;
+    throw wrong("true or false");
+  } else if constexpr (std::is_same_v<T, int>) {
+    if (const auto* i = std::get_if<int>(&value)) return *i;
+    const auto* d = std::get_if<double>(&value);
+    if (d && std::trunc(*d) == *d && std::abs(*d) < 2e9) return static_cast<int>(*d);
+    throw wrong("an integer");
+  } else if constexpr (std::is_same_v<T, double>) {
+    if (const auto* d = std::get_if<double>(&value)) return *d;
+    if (const auto* i = std::get_if<int>(&value)) return *i;
+    throw wrong("a number");
+  } else {
+    const auto* text = std::get_if<std::string>(&value);
+    if (!text) throw wrong("a name");
+    if constexpr (std::is_same_v<T, GlobalMode>) return parse_global_mode(*text, key);
+    else return parse_factor_source(*text, key);
+  }
+}
+
+}  // namespace
+
+std::vector<std::string> MappingConfig::keys() {
+  std::vector<std::string> out;
+  const MappingConfig defaults;
+  visit(defaults, [&](const char* s, const char* k, const auto&) { out.push_back(std::string(s) + "." + k); });
+  return out;
+}
+
+MappingConfig::Value MappingConfig::get(const std::string& key) const {
+  std::optional<Value> out;
+  visit(*this, [&](const char* s, const char* k, const auto& field) {
+    if (out || key != std::string(s) + "." + k) return;
+    if constexpr (std::is_enum_v<std::decay_t<decltype(field)>>) out = std::string(to_string(field));
+    else out = Value(field);
+  });
+  if (!out) throw Error("unknown key '" + key + "'");
+  return *out;
+}
+
+void MappingConfig::set(const std::string& key, const Value& value) {
+  bool found = false;
+  visit(*this, [&](const char* s, const char* k, auto& field) {
+    if (found || key != std::string(s) + "." + k) return;
+    found = true;
+    field = convert<std::decay_t<decltype(field)>>(value, key);
+  });
+  if (!found) throw Error("unknown key '" + key + "'");
 }
 
 }  // namespace gcmap

@@ -2,6 +2,8 @@
 // One config struct per module with the paper's defaults (Koide et al., RA-L 2021), loadable
 // from YAML. Every key is optional; an unknown key is an error naming it.
 #include <string>
+#include <variant>
+#include <vector>
 
 #include "gcmap/mapping/scan_context.hpp"
 
@@ -119,6 +121,14 @@ struct MappingConfig {
   static MappingConfig parse(const std::string& yaml, const std::string& origin);
   std::string to_yaml() const;
   void validate() const;
+
+  // Every field by its "section.key" name, for front ends that set fields one by one (the Python
+  // package); enums as their YAML names. Unknown keys and values of the wrong type throw Error
+  // naming the key; set() does not validate (fields checked together may be set in any order).
+  using Value = std::variant<bool, int, double, std::string>;
+  static std::vector<std::string> keys();
+  Value get(const std::string& key) const;
+  void set(const std::string& key, const Value& value);
 };
 
 }  // namespace gcmap
