@@ -6,7 +6,7 @@
 #include "gcmap/core/preprocess.hpp"
 #include "gcmap/core/timer.hpp"
 #include "gcmap/cuda/cuda_backend.hpp"
-#include "gcmap/graph/levenberg_marquardt.hpp"
+#include "gcmap/graph/matching_graph.hpp"
 #include "gcmap/io/json.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/registration/registration.hpp"
@@ -21,6 +21,15 @@ struct RegisterOptions {
   int threads = 0, max_iterations = 64;
   std::string device = "auto";
 };
+Json matrix_json(const Eigen::Isometry3d& T) {
+  Json rows = Json::array();
+  for (int i = 0; i < 4; ++i) {
+    Json row = Json::array();
+    for (int j = 0; j < 4; ++j) row.push_back(T.matrix()(i, j));
+    rows.push_back(row);
+  }
+  return rows;
+}
 }  // namespace
 
 void add_register(CLI::App& app, Runner& run) {
@@ -65,37 +74,12 @@ void add_register(CLI::App& app, Runner& run) {
       voxel_map->finalize();
       const GaussianVoxelMap& voxels = *voxel_map;
       const double t_vox = watch.lap_ms();
-      RegistrationResult r;
-      if (backend->device() == Device::cpu) {
-        RegistrationConfig config;
-        config.max_iterations = o.max_iterations;
-        r = align_vgicp(source, voxels, init, config);
-      } else {
-        // On the GPU: the same cost as a two-pose graph (target fixed) through the backend.
-        auto source_ptr = std::make_shared<const PointCloud>(source);
-        FactorGraph graph;
-        graph.add(std::make_shared<MatchingCostFactor>(1, 0, source_ptr, voxel_map));
-        Values values{{0, Eigen::Isometry3d::Identity()}, {1, init}};
-        LMConfig config;
-        config.max_iterations = o.max_iterations;
-        const LMResult lm = LevenbergMarquardt(config, backend).optimize(graph, values, {0});
-        r.T_target_source = values.at(1);
-        r.converged = lm.converged;
-        r.iterations = lm.iterations;
-        const VgicpError e = evaluate_vgicp(source, voxels, r.T_target_source);
-        r.error = e.error;
-        r.num_inliers = e.num_inliers;
-      }
+      const RegistrationResult r =
+          align_vgicp_on(backend, std::make_shared<const PointCloud>(source), voxel_map, init, o.max_iterations);
       const double t_align = watch.lap_ms();
 
       Json out = Json::object();
-      Json rows = Json::array();
-      for (int i = 0; i < 4; ++i) {
-        Json row = Json::array();
-        for (int j = 0; j < 4; ++j) row.push_back(r.T_target_source.matrix()(i, j));
-        rows.push_back(row);
-      }
-      out["T_target_source"] = rows;
+      out["T_target_source"] = matrix_json(r.T_target_source);
       out["converged"] = r.converged;
       out["iterations"] = r.iterations;
       out["num_inliers"] = r.num_inliers;

@@ -7,7 +7,7 @@
 #include "bindings.hpp"
 #include "gcmap/core/preprocess.hpp"
 #include "gcmap/cuda/cuda_backend.hpp"
-#include "gcmap/graph/levenberg_marquardt.hpp"
+#include "gcmap/graph/matching_graph.hpp"
 #include "gcmap/registration/registration.hpp"
 
 namespace gcmap::python {
@@ -34,26 +34,6 @@ PointCloud prepared(const PointCloud& cloud, const PairOptions& o) {
   return out;
 }
 
-RegistrationResult align_on_device(const std::shared_ptr<LinearizationBackend>& backend, PointCloud source,
-                                   const std::shared_ptr<GaussianVoxelMap>& voxels, const Eigen::Isometry3d& init,
-                                   int max_iterations) {
-  auto source_ptr = std::make_shared<const PointCloud>(std::move(source));
-  FactorGraph graph;
-  graph.add(std::make_shared<MatchingCostFactor>(1, 0, source_ptr, voxels));
-  Values values{{0, Eigen::Isometry3d::Identity()}, {1, init}};
-  LMConfig config;
-  config.max_iterations = max_iterations;
-  const LMResult lm = LevenbergMarquardt(config, backend).optimize(graph, values, {0});
-  RegistrationResult r;
-  r.T_target_source = values.at(1);
-  r.converged = lm.converged;
-  r.iterations = lm.iterations;
-  const VgicpError e = evaluate_vgicp(*source_ptr, *voxels, r.T_target_source);
-  r.error = e.error;
-  r.num_inliers = e.num_inliers;
-  return r;
-}
-
 PairResult register_pair(const PointCloud& target_in, const PointCloud& source_in, const Eigen::Isometry3d& init,
                          const PairOptions& o) {
   std::unique_ptr<tbb::global_control> threads;
@@ -73,7 +53,7 @@ PairResult register_pair(const PointCloud& target_in, const PointCloud& source_i
     const GicpTarget gicp_target(std::make_shared<const PointCloud>(target));
     out.r = align_gicp(source, gicp_target, init, config);
   } else if (backend) {
-    out.r = align_on_device(backend, source, voxels, init, o.max_iterations);
+    out.r = align_vgicp_on(backend, std::make_shared<const PointCloud>(source), voxels, init, o.max_iterations);
   } else {
     out.r = align_vgicp(source, *voxels, init, config);
   }

@@ -164,7 +164,7 @@ struct CudaBackend::Impl {
 
 CudaBackend::CudaBackend() {
   std::string why;
-  if (!device_available(&why)) throw Error("--device cuda: no usable CUDA device (" + why + ")");
+  if (!device_available(&why)) throw Error("device cuda: no usable CUDA device (" + why + ")");
   device::select_device(0);
   impl_ = std::make_unique<Impl>();
 }
@@ -245,7 +245,7 @@ bool device_available(std::string* why) {
 }
 
 struct CudaBackend::Impl {};
-CudaBackend::CudaBackend() { throw Error("--device cuda: this gcmap was built without CUDA (GCMAP_CUDA=OFF or no nvcc)"); }
+CudaBackend::CudaBackend() { throw Error("device cuda: this gcmap was built without CUDA (GCMAP_CUDA=OFF or no nvcc)"); }
 CudaBackend::~CudaBackend() = default;
 void CudaBackend::linearize(std::span<Factor* const>, std::span<const FactorPoses>, std::span<FactorLinearization>) {}
 void CudaBackend::trial_errors(std::span<Factor* const>, std::span<const FactorPoses>, std::span<double>) {}
