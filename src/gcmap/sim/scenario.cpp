@@ -39,7 +39,7 @@ Scenario make_scenario(const std::string& name, int frames) {
     add_waypoints(s, {{0, 0}, {3, 0}, {3, 3}, {0, 3}, {0, 0}, {2, 0}, {2, 5}, {5, 5}, {5, 3}, {3, 3}, {3, 0},
                       {1, 0}, {1, 3}, {0, 3}, {0, 1}});
     s.realistic = true;
-    s.cruise_min = 9.f, s.cruise_max = 15.f, s.stop_every = 2;
+    s.cruise_min = 8.5f, s.cruise_max = 14.5f, s.stop_every = 2;
     s.terrain = Terrain{6.f, 120.f, 4.f, 90.f, kRoad, 0.1f, 160};
     s.description = "3.7 km, 10 Hz, through a 500 m x 500 m street grid with slopes, traffic and stops; "
                     "revisits in both directions, one after 2.6 km";
