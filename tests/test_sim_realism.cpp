@@ -101,6 +101,13 @@ TEST(SimRealism, SameSeedSameBytesForAnyThreadCount) {
   }
 }
 
+TEST(SimRealism, AnExcerptIsTheStartOfTheWholeDrive) {
+  const PointCloud whole = sim::Simulator(config("city", 0)).scan(4), excerpt = sim::Simulator(config("city", 5)).scan(4);
+  ASSERT_EQ(whole.size(), excerpt.size());
+  EXPECT_EQ(std::memcmp(whole.points.data(), excerpt.points.data(), whole.size() * sizeof(Eigen::Vector3f)), 0);
+  EXPECT_EQ(whole.labels, excerpt.labels);
+}
+
 TEST(SimRealism, IdealWritesNoSidecarsAndNoErrors) {
   test::TempDir dir;
   sim::SimulationConfig cfg = config("city", 2, RealismConfig::none());

@@ -47,7 +47,8 @@ void Simulator::cast_group(size_t frame, int g, const std::vector<ActiveMover>& 
   const Eigen::Matrix3f R = T.linear().cast<float>();
   const Eigen::Vector3f o = T.translation().cast<float>();
   const double sweep_start = frame * static_cast<double>(sensor_.period);
-  // Movers whose azimuth window holds this group.
+  // Movers whose azimuth window holds this group (a fixed array: no allocation per group; more
+  // than 64 movers in one direction within range do not occur in our scenes).
   std::array<uint32_t, 64> near;
   size_t num_near = 0;
   if (!movers.empty()) {

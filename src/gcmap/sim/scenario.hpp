@@ -43,7 +43,8 @@ class Drive {
   Drive(const Scenario& s, const World& world, uint64_t seed);
   size_t num_frames() const { return num_frames_; }
   double length() const { return length_; }
-  double duration() const { return num_frames_ * 0.1; }
+  // Of the whole drive, also when only its first frames are simulated.
+  double duration() const { return even_ ? num_frames_ * 0.1 : knot_t_.back(); }
   // Pose at `frame` + a fraction of a frame period (frames are 0.1 s apart).
   Eigen::Isometry3d pose(double frame) const;
   const std::vector<Eigen::Vector2f>& lane() const { return lane_; }

@@ -1,15 +1,11 @@
 #include "gcmap/sim/simulator.hpp"
 
-#include <tbb/parallel_for.h>
-
 #include <array>
 #include <cmath>
-#include <random>
 #include <sstream>
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/sim/builders.hpp"
-#include "gcmap/sim/rng.hpp"
 
 namespace gcmap::sim {
 
@@ -109,7 +105,7 @@ Simulator::Simulator(const SimulationConfig& config)
     traffic_ = build_traffic(scenario_, config.seed, centerline);
     add_parked_car_dynamics(*world_, config.seed, static_cast<float>(trajectory_->duration()));
   }
-  if (realism_.vegetation || scenario_.scene != SceneKind::grid_city) set_porous_vegetation(*world_, config.seed, realism_.vegetation);
+  set_porous_vegetation(*world_, config.seed, realism_.vegetation);
 }
 
 Eigen::Isometry3d Simulator::pose_at(size_t frame, double seconds) const {
