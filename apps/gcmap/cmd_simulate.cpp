@@ -14,10 +14,15 @@ void add_simulate(CLI::App& app, Runner& run) {
   auto ideal = std::make_shared<bool>(false);
   auto* cmd = app.add_subcommand("simulate", "Generate a synthetic LiDAR sequence with exact ground truth (KITTI layout)");
   cmd->add_option("-o,--output", *out, "Output folder")->required();
-  cmd->add_option("--scenario", opt->scenario, "loop, small, corridor (ideal by default), city, highway, forest (realistic by default)")->capture_default_str();
-  cmd->add_option("--frames", opt->frames, "Number of frames (0 = the scenario's default)")->capture_default_str();
+  cmd->add_option("--scenario", opt->scenario,
+                  "loop, small, corridor (ideal by default), city, highway, forest (realistic by default)")
+      ->capture_default_str();
+  cmd->add_option("--frames", opt->frames,
+                  "Number of frames (0 = the scenario's default; city, highway, forest: the first N frames of the drive)")
+      ->capture_default_str();
   cmd->add_option("--seed", opt->seed, "World and noise seed")->capture_default_str();
-  cmd->add_option("--sensor", opt->sensor, "hdl64, vlp16, os1-64, os1-128 or avia (Livox-Avia-like rosette)")->capture_default_str();
+  cmd->add_option("--sensor", opt->sensor, "hdl64, vlp16, os1-64, os1-128 or avia (Livox-Avia-like rosette)")
+      ->capture_default_str();
   cmd->add_option("--noise", opt->noise, "Range noise sigma in m")->capture_default_str();
   cmd->add_flag("--ideal", *ideal, "No realism: scans at one instant, static world, Gaussian range noise only");
   cmd->add_option("--realism", *realism,
