@@ -47,6 +47,17 @@ TEST(Cli, RegisterPrintsJsonAndRecoversTransform) {
   EXPECT_NEAR(m[3], 0.4, 0.05);
 }
 
+TEST(Cli, SimulateRejectsConflictingRealism) {
+  test::TempDir dir;
+  const RunResult a = run_cli("simulate -o " + (dir / "s") + " --scenario city --frames 2 --ideal --realism all");
+  EXPECT_EQ(a.code, 2);
+  EXPECT_NE(a.err.find("--ideal and --realism"), std::string::npos) << a.err;
+  const RunResult b = run_cli("simulate -o " + (dir / "s") + " --scenario city --frames 2 --realism labels,wobble");
+  EXPECT_EQ(b.code, 2);
+  EXPECT_NE(b.err.find("--realism: unknown key 'wobble'"), std::string::npos) << b.err;
+  EXPECT_EQ(std::count(b.err.begin(), b.err.end(), '\n'), 1) << b.err;
+}
+
 TEST(Cli, BadInputExitsTwoWithOneLine) {
   test::TempDir dir;
   std::ofstream(dir / "trunc.bin") << "0123456789";

@@ -1,63 +1,91 @@
 #pragma once
 #include <Eigen/Geometry>
+#include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "gcmap/core/point_cloud.hpp"
+#include "gcmap/sim/scenario.hpp"
+#include "gcmap/sim/sensor.hpp"
+#include "gcmap/sim/traffic.hpp"
 #include "gcmap/sim/world.hpp"
 
 namespace gcmap::sim {
 
-// A spinning multi-beam LiDAR; one scan is captured at one pose (no motion distortion).
-struct SensorModel {
-  std::string name;
-  std::vector<float> elevations_deg;
-  int azimuth_steps = 1800;
-  float min_range = 2.0f, max_range = 120.0f;
-  float dropout = 0.01f;  // fraction of returns lost
+// What makes the simulated world hard in the ways real drives are. Keys as in --realism.
+struct RealismConfig {
+  bool motion_distortion = true;  // each firing at the pose of its own time within the sweep
+  bool moving_objects = true;     // traffic, cyclists, pedestrians; parked cars come and go
+  bool labels = true;             // SemanticKITTI labels/NNNNNN.label
+  bool calibration = true;        // per-beam elevation bias and range offset
+  bool range_noise = true;        // noise sigma grows with range
+  bool dropouts = true;           // weak returns lost: grazing incidence, dark surfaces, far
+  bool mixed_pixels = true;       // returns between the two surfaces at depth edges
+  bool spurious = true;           // a few returns from nowhere
+  bool curbs = true;              // raised sidewalks
+  bool vegetation = true;         // porous canopies: partial returns
+
+  static RealismConfig all() { return {}; }
+  static RealismConfig none() { return {false, false, false, false, false, false, false, false, false, false}; }
+  bool any() const;
+  std::string to_string() const;  // the enabled keys, comma-separated, or "none"
 };
-SensorModel sensor_model(const std::string& name);  // hdl64, vlp16, os1-64
+// "all", "none" or a comma-separated list of keys (motion_distortion, moving_objects, labels,
+// calibration, range_noise, dropouts, mixed_pixels, spurious, curbs, vegetation) to enable.
+RealismConfig parse_realism(const std::string& text);
 
 struct SimulationConfig {
-  std::string scenario = "loop";  // loop, small, corridor
+  std::string scenario = "loop";  // loop, small, corridor, city, highway, forest
   int frames = 0;                 // 0: the scenario's default
   uint64_t seed = 1;
   std::string sensor = "hdl64";
-  double noise = 0.02;  // range noise sigma in m
+  double noise = 0.02;  // range noise sigma in m (at about 20 m with range_noise)
+  // Unset: the scenario's default (everything for city, highway and forest; nothing for loop,
+  // small and corridor, whose output stays as it always was).
+  std::optional<RealismConfig> realism;
 };
 
-struct Scenario {
-  std::string name;
-  float block = 50.f;                       // street spacing in m
-  std::vector<Eigen::Vector2f> waypoints;   // in blocks, along streets
-  int frames = 0;
-  bool feature_poor = false;
-  std::string description;
-};
 Scenario make_scenario(const SimulationConfig& config);
 
 class Simulator {
  public:
   explicit Simulator(const SimulationConfig& config);
   size_t num_frames() const { return poses_.size(); }
-  // World poses of the sensor at each frame.
+  // World poses of the sensor at each frame's stamp (the start of its sweep).
   const std::vector<Eigen::Isometry3d>& poses() const { return poses_; }
+  // World pose of the sensor `seconds` after the stamp of `frame`.
+  Eigen::Isometry3d pose_at(size_t frame, double seconds) const;
   const Scenario& scenario() const { return scenario_; }
-  double path_length() const { return length_; }
-  // Deterministic for (seed, frame). Points in the sensor frame, with intensity.
-  PointCloud scan(size_t frame) const;
+  const SensorModel& sensor() const { return sensor_; }
+  const RealismConfig& realism() const { return realism_; }
+  const World& world() const { return *world_; }
+  const Traffic& traffic() const { return traffic_; }
+  double path_length() const { return trajectory_->length(); }
+  // Deterministic for (seed, frame). Points in the sensor frame at their firing time, with
+  // intensity; with distortion, times (s after the stamp); with labels, SemanticKITTI labels
+  // (class | instance << 16). `ray_ids` (optional): group * rays_per_group + ray of each point.
+  PointCloud scan(size_t frame, std::vector<uint32_t>* ray_ids = nullptr) const;
 
  private:
+  struct Rays;
+  void cast_group(size_t frame, int group, const std::vector<ActiveMover>& movers, Rays& out) const;
+  void mix_depth_edges(size_t frame, Rays& rays) const;
+
   SimulationConfig config_;
   Scenario scenario_;
+  RealismConfig realism_;
   SensorModel sensor_;
-  World world_;
+  Calibration calibration_;
+  std::unique_ptr<World> world_;
+  std::unique_ptr<Drive> trajectory_;
+  Traffic traffic_;
   std::vector<Eigen::Isometry3d> poses_;
-  double length_ = 0.0;
 };
 
-// Writes DIR/velodyne/NNNNNN.bin, poses.txt (sensor frame, first pose identity), times.txt and
-// scenario.json. Returns the number of points written.
+// Writes DIR/velodyne/NNNNNN.bin, poses.txt (sensor frame at each stamp, first pose identity),
+// times.txt, scenario.json and, with the realism that makes them, point_times/NNNNNN.bin (float32
+// seconds after the stamp, one per point) and labels/NNNNNN.label. Returns the number of points.
 size_t write_simulation(const std::string& dir, const SimulationConfig& config, bool quiet = true);
 
 }  // namespace gcmap::sim

@@ -2,108 +2,28 @@
 
 #include <algorithm>
 #include <cmath>
-#include <random>
+
+#include "gcmap/sim/rng.hpp"
 
 namespace gcmap::sim {
 
-namespace {
-constexpr float kHillAmp1 = 1.6f, kHillLen1 = 110.f, kHillAmp2 = 1.1f, kHillLen2 = 75.f;
-constexpr float kMaxGrad = kHillAmp1 / kHillLen1 + kHillAmp2 / kHillLen2 + 1e-3f;
-}  // namespace
+World::World(const Terrain& terrain, Eigen::Vector2f lo, Eigen::Vector2f hi)
+    : terrain_(terrain), max_grad_(terrain.amp_x / terrain.len_x + terrain.amp_y / terrain.len_y + 1e-3f), origin_(lo) {
+  nx_ = std::max(1, static_cast<int>(std::ceil((hi.x() - lo.x()) / cell_)));
+  ny_ = std::max(1, static_cast<int>(std::ceil((hi.y() - lo.y()) / cell_)));
+  build_cells_.assign(static_cast<size_t>(nx_) * ny_, {});
+}
 
 float World::ground_height(float x, float y) const {
-  return kHillAmp1 * std::sin(x / kHillLen1) + kHillAmp2 * std::sin(y / kHillLen2 + 0.7f);
+  return terrain_.amp_x * std::sin(x / terrain_.len_x) + terrain_.amp_y * std::sin(y / terrain_.len_y + 0.7f);
 }
 
 Eigen::Vector2f World::ground_gradient(float x, float y) const {
-  return {kHillAmp1 / kHillLen1 * std::cos(x / kHillLen1), kHillAmp2 / kHillLen2 * std::cos(y / kHillLen2 + 0.7f)};
+  return {terrain_.amp_x / terrain_.len_x * std::cos(x / terrain_.len_x),
+          terrain_.amp_y / terrain_.len_y * std::cos(y / terrain_.len_y + 0.7f)};
 }
 
-World::World(uint64_t seed, float block, Eigen::Vector2i lo, Eigen::Vector2i hi, bool feature_poor) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<float> u(0.f, 1.f);
-  const float street_half = 7.f, sidewalk = 3.f;
-  origin_ = Eigen::Vector2f(lo.x() * block - block, lo.y() * block - block);
-  nx_ = static_cast<int>(std::ceil(((hi.x() - lo.x()) + 2) * block / cell_));
-  ny_ = static_cast<int>(std::ceil(((hi.y() - lo.y()) + 2) * block / cell_));
-  build_cells_.assign(static_cast<size_t>(nx_) * ny_, {});
-
-  auto ground_box = [&](float x0, float y0, float x1, float y1, float height, float refl) {
-    const float g = ground_height(0.5f * (x0 + x1), 0.5f * (y0 + y1));
-    add_box({Eigen::Vector3f(x0, y0, g - 3.f), Eigen::Vector3f(x1, y1, g + height), refl});
-  };
-  for (int bx = lo.x() - 1; bx <= hi.x(); ++bx) {
-    for (int by = lo.y() - 1; by <= hi.y(); ++by) {
-      // Block interior between the streets on x = bx*block and x = (bx+1)*block.
-      const float x0 = bx * block + street_half + sidewalk, x1 = (bx + 1) * block - street_half - sidewalk;
-      const float y0 = by * block + street_half + sidewalk, y1 = (by + 1) * block - street_half - sidewalk;
-      if (x1 - x0 < 6.f || y1 - y0 < 6.f) continue;
-      if (feature_poor) {
-        // One long flat facade per block side: a degenerate corridor.
-        ground_box(x0, y0, x1, y1, 12.f, 0.3f);
-        continue;
-      }
-      // Buildings along each side with varied facade depth, width and height, gaps between them.
-      for (int side = 0; side < 4; ++side) {
-        const bool along_x = side < 2;
-        const float len = along_x ? x1 - x0 : y1 - y0;
-        float s = u(rng) * 3.f;
-        while (s < len - 4.f) {
-          const float w = std::min(6.f + 14.f * u(rng), len - s);
-          const float setback = 3.f * u(rng), depth = 8.f + 6.f * u(rng), h = 5.f + 20.f * u(rng);
-          float a0, a1, b0, b1;
-          if (along_x) {
-            a0 = x0 + s, a1 = x0 + s + w;
-            if (side == 0) b0 = y0 + setback, b1 = y0 + setback + depth;
-            else b1 = y1 - setback, b0 = y1 - setback - depth;
-            ground_box(a0, b0, a1, b1, h, 0.2f + 0.3f * u(rng));
-          } else {
-            b0 = y0 + s, b1 = y0 + s + w;
-            if (side == 2) a0 = x0 + setback, a1 = x0 + setback + depth;
-            else a1 = x1 - setback, a0 = x1 - setback - depth;
-            ground_box(a0, b0, a1, b1, h, 0.2f + 0.3f * u(rng));
-          }
-          s += w + (u(rng) < 0.4f ? 2.f + 6.f * u(rng) : 0.3f);
-        }
-      }
-      // Street furniture along the block's four curbs.
-      const float curb[4] = {y0 - sidewalk + 0.5f, y1 + sidewalk - 0.5f, x0 - sidewalk + 0.5f, x1 + sidewalk - 0.5f};
-      for (int side = 0; side < 4; ++side) {
-        const bool along_x = side < 2;
-        const float a_lo = along_x ? x0 : y0, a_hi = along_x ? x1 : y1;
-        for (float a = a_lo + 2.f + 8.f * u(rng); a < a_hi - 2.f; a += 6.f + 14.f * u(rng)) {
-          const float c = curb[side];
-          const Eigen::Vector2f p = along_x ? Eigen::Vector2f(a, c) : Eigen::Vector2f(c, a);
-          const float g = ground_height(p.x(), p.y());
-          const float kind = u(rng);
-          if (kind < 0.35f) {  // pole
-            add_cylinder({p, 0.12f + 0.08f * u(rng), g - 1.f, g + 4.f + 4.f * u(rng), 0.6f});
-          } else if (kind < 0.7f) {  // tree: trunk and a cluttered canopy of spheres
-            const float trunk = 2.f + 1.5f * u(rng);
-            add_cylinder({p, 0.18f + 0.1f * u(rng), g - 1.f, g + trunk, 0.25f});
-            const int blobs = 4 + static_cast<int>(4 * u(rng));
-            for (int k = 0; k < blobs; ++k) {
-              const Eigen::Vector3f off(2.f * u(rng) - 1.f, 2.f * u(rng) - 1.f, 1.2f * u(rng));
-              add_sphere({Eigen::Vector3f(p.x(), p.y(), g + trunk + 1.f) + 1.3f * off, 0.7f + 0.9f * u(rng), 0.15f});
-            }
-          } else {  // parked car on the street side of the curb
-            const float off = along_x ? (side == 0 ? -2.2f : 2.2f) : (side == 2 ? -2.2f : 2.2f);
-            const Eigen::Vector2f q = along_x ? Eigen::Vector2f(p.x(), p.y() + off) : Eigen::Vector2f(p.x() + off, p.y());
-            const Eigen::Vector2f half = along_x ? Eigen::Vector2f(2.2f, 0.9f) : Eigen::Vector2f(0.9f, 2.2f);
-            const float gq = ground_height(q.x(), q.y());
-            add_box({Eigen::Vector3f(q.x() - half.x(), q.y() - half.y(), gq - 0.5f),
-                     Eigen::Vector3f(q.x() + half.x(), q.y() + half.y(), gq + 1.4f + 0.3f * u(rng)), 0.8f});
-          }
-        }
-      }
-      // Occasional garden wall inside the block.
-      if (u(rng) < 0.3f) {
-        const float xm = x0 + (x1 - x0) * (0.3f + 0.4f * u(rng));
-        ground_box(xm, y0 + 2.f, xm + 0.3f, y1 - 2.f, 2.f, 0.4f);
-      }
-    }
-  }
-  // Compact the grid into CSR.
+void World::finalize() {
   cell_start_.assign(build_cells_.size() + 1, 0);
   for (size_t c = 0; c < build_cells_.size(); ++c) cell_start_[c + 1] = cell_start_[c] + build_cells_[c].size();
   cell_items_.reserve(cell_start_.back());
@@ -133,12 +53,17 @@ void World::add_sphere(const Sphere& s) {
   index(2, static_cast<int>(spheres_.size()), s.center.head<2>().array() - s.radius, s.center.head<2>().array() + s.radius);
   spheres_.push_back(s);
 }
+void World::add_oriented_box(const OrientedBox& b) {
+  const float r = b.half.head<2>().norm();
+  index(3, static_cast<int>(oboxes_.size()), b.center.head<2>().array() - r, b.center.head<2>().array() + r);
+  oboxes_.push_back(b);
+}
 
 bool World::ground_hit(const Eigen::Vector3f& o, const Eigen::Vector3f& d, float t_max, float& t) const {
   // Sphere tracing on h(t) = z(t) - g(x(t), y(t)): |dh/dt| <= L, so a step of h/L never overshoots.
-  const float L = std::abs(d.z()) + kMaxGrad * d.head<2>().norm();
+  const float L = std::abs(d.z()) + max_grad_ * d.head<2>().norm();
   t = 0.f;
-  for (int it = 0; it < 64 && t < t_max; ++it) {
+  for (int it = 0; it < terrain_.trace_steps && t < t_max; ++it) {
     const Eigen::Vector3f p = o + t * d;
     const float h = p.z() - ground_height(p.x(), p.y());
     if (h < 2e-3f) return true;
@@ -147,13 +72,14 @@ bool World::ground_hit(const Eigen::Vector3f& o, const Eigen::Vector3f& d, float
   return false;
 }
 
-namespace {
-inline bool hit_box(const Box& b, const Eigen::Vector3f& o, const Eigen::Vector3f& inv, float& t) {
+bool intersect_box(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, const Eigen::Vector3f& o,
+                   const Eigen::Vector3f& inv, float& t, int& axis) {
   float t0 = 0.f, t1 = 1e30f;
+  axis = 0;
   for (int k = 0; k < 3; ++k) {
-    float a = (b.min[k] - o[k]) * inv[k], c = (b.max[k] - o[k]) * inv[k];
+    float a = (lo[k] - o[k]) * inv[k], c = (hi[k] - o[k]) * inv[k];
     if (a > c) std::swap(a, c);
-    t0 = std::max(t0, a);
+    if (a > t0) t0 = a, axis = k;
     t1 = std::min(t1, c);
     if (t0 > t1) return false;
   }
@@ -161,12 +87,15 @@ inline bool hit_box(const Box& b, const Eigen::Vector3f& o, const Eigen::Vector3
   t = t0;
   return true;
 }
-inline bool hit_sphere(const Sphere& s, const Eigen::Vector3f& o, const Eigen::Vector3f& d, float& t) {
+
+namespace {
+inline bool hit_sphere(const Sphere& s, const Eigen::Vector3f& o, const Eigen::Vector3f& d, float& t, float& chord) {
   const Eigen::Vector3f m = o - s.center;
   const float b = m.dot(d), c = m.squaredNorm() - s.radius * s.radius;
   const float disc = b * b - c;
   if (disc < 0.f) return false;
   t = -b - std::sqrt(disc);
+  chord = 2.f * std::sqrt(disc);
   return t > 0.f;
 }
 inline bool hit_cylinder(const Cylinder& cy, const Eigen::Vector3f& o, const Eigen::Vector3f& d, float& t) {
@@ -184,14 +113,55 @@ inline bool hit_cylinder(const Cylinder& cy, const Eigen::Vector3f& o, const Eig
 }
 }  // namespace
 
-bool World::raycast(const Eigen::Vector3f& o, const Eigen::Vector3f& d, float max_range, Hit& hit) const {
+bool World::hit_item(uint32_t item, const Eigen::Vector3f& o, const Eigen::Vector3f& d, const Eigen::Vector3f& inv,
+                     const RayContext& ctx, float& t, Hit& h) const {
+  const uint32_t kind = item >> 28, id = item & 0x0fffffffu;
+  int axis = 0;
+  if (kind == 0) {
+    const Box& b = boxes_[id];
+    if (ctx.time < b.t_begin || ctx.time >= b.t_end || !intersect_box(b.min, b.max, o, inv, t, axis)) return false;
+    h = Hit{t, b.reflectivity, b.label, std::abs(d[axis])};
+  } else if (kind == 1) {
+    const Cylinder& c = cylinders_[id];
+    if (!hit_cylinder(c, o, d, t)) return false;
+    const Eigen::Vector2f n = ((o + t * d).head<2>() - c.center) / c.radius;
+    h = Hit{t, c.reflectivity, c.label, std::abs(n.dot(d.head<2>()))};
+  } else if (kind == 2) {
+    const Sphere& s = spheres_[id];
+    float chord;
+    if (!hit_sphere(s, o, d, t, chord)) return false;
+    h = Hit{t, s.reflectivity, s.label, std::abs((o + t * d - s.center).dot(d)) / s.radius};
+    if (s.porosity > 0.f) {
+      // Leaves: the ray passes, or returns from somewhere in the first metre or so of foliage.
+      const uint64_t r = hash_key(ctx.key, item);
+      if (unit_float(r) < s.porosity) return false;
+      t += unit_float(mix64(r)) * std::min(chord, 1.2f);
+      h.range = t;
+    }
+  } else {
+    const OrientedBox& b = oboxes_[id];
+    const float c = std::cos(b.yaw), sn = std::sin(b.yaw);
+    const Eigen::Vector3f m = o - b.center;
+    const Eigen::Vector3f ol(c * m.x() + sn * m.y(), -sn * m.x() + c * m.y(), m.z());
+    const Eigen::Vector3f dl(c * d.x() + sn * d.y(), -sn * d.x() + c * d.y(), d.z());
+    const Eigen::Vector3f il(1.f / dl.x(), 1.f / dl.y(), 1.f / dl.z());
+    if (!intersect_box(-b.half, b.half, ol, il, t, axis)) return false;
+    h = Hit{t, b.reflectivity, b.label, std::abs(dl[axis])};
+  }
+  return true;
+}
+
+bool World::raycast(const Eigen::Vector3f& o, const Eigen::Vector3f& d, float max_range, Hit& hit,
+                    const RayContext& ctx) const {
   float t_best = max_range;
-  float refl = 0.f;
   bool found = false;
   float tg;
   if (ground_hit(o, d, max_range, tg) && tg < t_best) {
     t_best = tg;
-    refl = 0.1f;
+    const Eigen::Vector3f p = o + tg * d;
+    const Eigen::Vector2f g = ground_gradient(p.x(), p.y());
+    const float cos_inc = std::abs(d.z() - g.x() * d.x() - g.y() * d.y()) / std::sqrt(1.f + g.squaredNorm());
+    hit = Hit{tg, terrain_.reflectivity, terrain_.label, cos_inc};
     found = true;
   }
   const Eigen::Vector3f inv(1.f / d.x(), 1.f / d.y(), 1.f / d.z());
@@ -209,17 +179,11 @@ bool World::raycast(const Eigen::Vector3f& o, const Eigen::Vector3f& d, float ma
     if (cx >= 0 && cy >= 0 && cx < nx_ && cy < ny_) {
       const size_t c = static_cast<size_t>(cy) * nx_ + cx;
       for (uint32_t k = cell_start_[c]; k < cell_start_[c + 1]; ++k) {
-        const uint32_t item = cell_items_[k];
-        const uint32_t kind = item >> 28, id = item & 0x0fffffffu;
         float t;
-        bool h = false;
-        float r = 0.f;
-        if (kind == 0) h = hit_box(boxes_[id], o, inv, t), r = boxes_[id].reflectivity;
-        else if (kind == 1) h = hit_cylinder(cylinders_[id], o, d, t), r = cylinders_[id].reflectivity;
-        else h = hit_sphere(spheres_[id], o, d, t), r = spheres_[id].reflectivity;
-        if (h && t < t_best) {
+        Hit h;
+        if (hit_item(cell_items_[k], o, d, inv, ctx, t, h) && t < t_best) {
           t_best = t;
-          refl = r;
+          hit = h;
           found = true;
         }
       }
@@ -236,10 +200,7 @@ bool World::raycast(const Eigen::Vector3f& o, const Eigen::Vector3f& d, float ma
       cy += sy;
     }
   }
-  if (!found) return false;
-  hit.range = t_best;
-  hit.reflectivity = refl;
-  return true;
+  return found;
 }
 
 }  // namespace gcmap::sim

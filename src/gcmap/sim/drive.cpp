@@ -1,0 +1,93 @@
+#include <algorithm>
+#include <cmath>
+
+#include "gcmap/sim/rng.hpp"
+#include "gcmap/sim/scenario.hpp"
+
+namespace gcmap::sim {
+
+namespace {
+constexpr double kFramePeriod = 0.1;
+constexpr double kAccel = 1.5, kDecel = 2.5;  // m/s^2
+constexpr int kChord = 20;                    // samples (1 m) for headings and curvature
+}  // namespace
+
+Drive::Drive(const Scenario& s, const World& world, uint64_t seed) : world_(world) {
+  std::vector<size_t> corner_starts;
+  lane_ = shifted_right(route_centerline(s, &corner_starts), s.lane_offset);
+  arc_.assign(lane_.size(), 0.0);
+  for (size_t i = 1; i < lane_.size(); ++i) arc_[i] = arc_[i - 1] + (lane_[i] - lane_[i - 1]).norm();
+  length_ = arc_.back();
+  even_ = !s.realistic;
+  if (even_) {
+    num_frames_ = static_cast<size_t>(s.frames);
+    return;
+  }
+  speed_profile(s, corner_starts, seed);
+  const size_t all = static_cast<size_t>(knot_t_.back() / kFramePeriod) + 1;
+  num_frames_ = s.frames > 0 ? std::min<size_t>(all, static_cast<size_t>(s.frames)) : all;
+}
+
+// Speed limits from the cruise speed and the curvature, zero at stops; then acceleration limits
+// forwards and backwards; then time by integration (stops add their dwell).
+void Drive::speed_profile(const Scenario& s, const std::vector<size_t>& corner_starts, uint64_t seed) {
+  const size_t n = lane_.size();
+  std::vector<double> v(n), dwell(n, 0.0);
+  for (size_t i = 0; i < n; ++i) {
+    const size_t a = i >= kChord ? i - kChord : 0, b = std::min(i + kChord, n - 1);
+    const Eigen::Vector2f t0 = (lane_[i] - lane_[a]).normalized(), t1 = (lane_[b] - lane_[i]).normalized();
+    const double turn = (a == i || b == i) ? 0.0 : std::acos(std::clamp<double>(t0.dot(t1), -1.0, 1.0));
+    const double kappa = turn / std::max(arc_[b] - arc_[a], 1e-3) * 2.0;
+    Rng r(hash_key(seed, 0x5BD, static_cast<uint64_t>(arc_[i] / 150.0)));
+    v[i] = std::min<double>(r.uniform(s.cruise_min, s.cruise_max), std::sqrt(s.lateral_accel / std::max(kappa, 1e-9)));
+  }
+  if (s.rest_at_ends) v.front() = 0.0, v.back() = 0.0;
+  for (size_t k = 1; s.stop_every > 0 && k + 1 < corner_starts.size(); ++k) {
+    if (k % s.stop_every != 0) continue;
+    // Stop line 5 m before the intersection.
+    const size_t i = corner_starts[k] > 100 ? corner_starts[k] - 100 : 0;
+    v[i] = 0.0;
+    dwell[i] = Rng(hash_key(seed, 0x570, k)).uniform(2.f, 6.f);
+  }
+  for (size_t i = 1; i < n; ++i) v[i] = std::min(v[i], std::sqrt(v[i - 1] * v[i - 1] + 2 * kAccel * (arc_[i] - arc_[i - 1])));
+  for (size_t i = n - 1; i-- > 0;) v[i] = std::min(v[i], std::sqrt(v[i + 1] * v[i + 1] + 2 * kDecel * (arc_[i + 1] - arc_[i])));
+  double t = 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    if (i > 0) t += 2.0 * (arc_[i] - arc_[i - 1]) / std::max(v[i] + v[i - 1], 1e-3);
+    knot_t_.push_back(t), knot_s_.push_back(arc_[i]);
+    if (dwell[i] > 0) t += dwell[i], knot_t_.push_back(t), knot_s_.push_back(arc_[i]);
+  }
+}
+
+double Drive::arclength(double frame) const {
+  if (even_) return length_ * frame / (num_frames_ - 1);
+  const double t = frame * kFramePeriod;
+  const size_t j = std::clamp<size_t>(std::upper_bound(knot_t_.begin(), knot_t_.end(), t) - knot_t_.begin(), 1,
+                                      knot_t_.size() - 1);
+  const double dt = knot_t_[j] - knot_t_[j - 1];
+  const double f = dt > 0 ? std::clamp((t - knot_t_[j - 1]) / dt, 0.0, 1.0) : 1.0;
+  return knot_s_[j - 1] + f * (knot_s_[j] - knot_s_[j - 1]);
+}
+
+Eigen::Isometry3d Drive::pose(double frame) const {
+  const double s = arclength(frame);
+  const size_t seg = std::min<size_t>(std::lower_bound(arc_.begin() + 1, arc_.end(), s) - arc_.begin(), lane_.size() - 1) - 1;
+  const double f = std::clamp((s - arc_[seg]) / std::max(arc_[seg + 1] - arc_[seg], 1e-9), 0.0, 1.0);
+  const Eigen::Vector2f p = lane_[seg] + static_cast<float>(f) * (lane_[seg + 1] - lane_[seg]);
+  // Heading from a short look-ahead/behind chord smooths the polyline's kinks.
+  const size_t a = seg >= kChord ? seg - kChord : 0, b = std::min<size_t>(seg + kChord + 1, lane_.size() - 1);
+  const Eigen::Vector2f t = (lane_[b] - lane_[a]).normalized();
+  // The vehicle follows the terrain: z along the ground normal, x along the heading.
+  const Eigen::Vector2f g = world_.ground_gradient(p.x(), p.y());
+  const Eigen::Vector3d z = Eigen::Vector3d(-g.x(), -g.y(), 1.0).normalized();
+  Eigen::Vector3d x(t.x(), t.y(), 0.0);
+  x = (x - x.dot(z) * z).normalized();
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear().col(0) = x;
+  T.linear().col(1) = z.cross(x);
+  T.linear().col(2) = z;
+  T.translation() = Eigen::Vector3d(p.x(), p.y(), world_.ground_height(p.x(), p.y()) + 1.73);
+  return T;
+}
+
+}  // namespace gcmap::sim

@@ -1,0 +1,65 @@
+#pragma once
+// Scenarios (routes, worlds, speed) and the vehicle's trajectory along a route.
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+#include "gcmap/sim/world.hpp"
+
+namespace gcmap::sim {
+
+enum class SceneKind { grid_city, highway, forest };
+
+struct Scenario {
+  std::string name;
+  SceneKind scene = SceneKind::grid_city;
+  float block = 50.f;                      // street spacing in m (the unit of the waypoints)
+  std::vector<Eigen::Vector2f> waypoints;  // in blocks, along streets
+  int frames = 0;  // constant speed: frames spread evenly over the route; else 0 = the whole drive
+  bool feature_poor = false;
+  bool realistic = false;  // realism on by default, traffic, sidewalks, a speed profile
+  float corner_radius = 9.f, lane_offset = 2.f;
+  // Speed profile (realistic scenarios): cruise speed drawn per 150 m within [cruise_min,
+  // cruise_max], slower in curves, a stop before every `stop_every`-th waypoint.
+  float cruise_min = 0.f, cruise_max = 0.f, lateral_accel = 2.5f;
+  int stop_every = 0;
+  bool rest_at_ends = true;  // starts from and ends in a stop
+  Terrain terrain;
+  std::string description;
+};
+// loop, small, corridor (evenly spaced frames, no realism by default), city, highway, forest.
+// `frames` > 0 overrides the frame count (for realistic scenarios: the first `frames` frames).
+Scenario make_scenario(const std::string& name, int frames);
+
+// The route as a dense polyline (5 cm steps) with rounded corners, on the road's centre line;
+// `corner_starts[k]` is the index where the curve at waypoint k begins.
+std::vector<Eigen::Vector2f> route_centerline(const Scenario& s, std::vector<size_t>* corner_starts = nullptr);
+// The same shifted by `offset` to the right of the direction of travel.
+std::vector<Eigen::Vector2f> shifted_right(const std::vector<Eigen::Vector2f>& line, float offset);
+
+// The sensor's motion along the lane: its pose at any time, following the terrain.
+class Drive {
+ public:
+  Drive(const Scenario& s, const World& world, uint64_t seed);
+  size_t num_frames() const { return num_frames_; }
+  double length() const { return length_; }
+  // Of the whole drive, also when only its first frames are simulated.
+  double duration() const { return even_ ? num_frames_ * 0.1 : knot_t_.back(); }
+  // Pose at `frame` + a fraction of a frame period (frames are 0.1 s apart).
+  Eigen::Isometry3d pose(double frame) const;
+  const std::vector<Eigen::Vector2f>& lane() const { return lane_; }
+
+ private:
+  double arclength(double frame) const;
+  void speed_profile(const Scenario& s, const std::vector<size_t>& corner_starts, uint64_t seed);
+
+  const World& world_;
+  std::vector<Eigen::Vector2f> lane_;
+  std::vector<double> arc_;
+  double length_ = 0.0;
+  size_t num_frames_ = 0;
+  bool even_ = true;  // constant speed: frames evenly spaced along the route
+  std::vector<double> knot_t_, knot_s_;  // speed profile: arc length at times (piecewise linear)
+};
+
+}  // namespace gcmap::sim

@@ -1,0 +1,126 @@
+// write_simulation: a simulated sequence on disk in the KITTI layout.
+#include <spdlog/spdlog.h>
+#include <tbb/parallel_for.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+
+#include "gcmap/core/error.hpp"
+#include "gcmap/core/timer.hpp"
+#include "gcmap/io/file.hpp"
+#include "gcmap/io/json.hpp"
+#include "gcmap/io/trajectory_io.hpp"
+#include "gcmap/sim/simulator.hpp"
+
+namespace gcmap::sim {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+template <typename T>
+void write_binary(const fs::path& path, const std::vector<T>& data) {
+  write_file_atomic(path.string(), [&](std::ostream& out) {
+    out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size() * sizeof(T)));
+  });
+}
+
+void write_scan(const fs::path& dir, size_t k, const PointCloud& c) {
+  char name[32];
+  std::vector<float> buf(c.size() * 4);
+  for (size_t i = 0; i < c.size(); ++i) {
+    buf[4 * i + 0] = c.points[i].x();
+    buf[4 * i + 1] = c.points[i].y();
+    buf[4 * i + 2] = c.points[i].z();
+    buf[4 * i + 3] = c.intensities[i];
+  }
+  std::snprintf(name, sizeof(name), "%06zu.bin", k);
+  write_binary(dir / "velodyne" / name, buf);
+  if (c.has_times()) write_binary(dir / "point_times" / name, c.times);  // float32, s after the stamp
+  std::snprintf(name, sizeof(name), "%06zu.label", k);
+  if (c.has_labels()) write_binary(dir / "labels" / name, c.labels);
+}
+
+void write_metadata(const fs::path& dir, const Simulator& sim, const SimulationConfig& config, size_t total) {
+  Trajectory gt;
+  gt.format = TrajectoryFormat::kitti;
+  const Eigen::Isometry3d T0_inv = sim.poses().front().inverse();
+  for (const auto& T : sim.poses()) gt.poses.push_back(T0_inv * T);
+  write_trajectory((dir / "poses.txt").string(), gt);
+  write_file_atomic((dir / "times.txt").string(), [&](std::ostream& out) {
+    char line[32];
+    for (size_t k = 0; k < sim.num_frames(); ++k) {
+      std::snprintf(line, sizeof(line), "%.6e\n", 0.1 * k);
+      out << line;
+    }
+  });
+  const RealismConfig& r = sim.realism();
+  Json j = Json::object();
+  j["scenario"] = sim.scenario().name;
+  j["description"] = sim.scenario().description;
+  j["frames"] = sim.num_frames();
+  j["seed"] = static_cast<unsigned long>(config.seed);
+  j["sensor"] = config.sensor;
+  j["range_noise_sigma"] = config.noise;
+  j["path_length_m"] = sim.path_length();
+  j["rate_hz"] = 10.0;
+  j["mean_points_per_scan"] = static_cast<double>(total) / sim.num_frames();
+  j["motion_distortion"] = r.motion_distortion;
+  j["poses"] = "poses.txt: ground-truth sensor poses, KITTI 3x4, first pose identity";
+  if (r.any()) {  // the ideal scenarios keep their historical file
+    j["realism"] = r.to_string();
+    j["stamp"] = "sweep_start";
+    j["stamps"] = "times.txt and poses.txt are at the start of each sweep; points are in the sensor frame at their own firing time";
+    if (r.motion_distortion) j["point_times"] = "point_times/NNNNNN.bin: float32 little-endian, one per point, seconds after the stamp, in [0, 0.1)";
+    if (r.labels) j["labels"] = "labels/NNNNNN.label: uint32 per point, class (SemanticKITTI) | instance << 16; moving classes 252-259";
+    if (r.moving_objects) j["moving_objects"] = sim.traffic().size();
+  }
+  write_file_atomic((dir / "scenario.json").string(), [&](std::ostream& out) { out << j.dump() << "\n"; });
+}
+
+void report_progress(size_t done, size_t total, double seconds, bool tty) {
+  const double rate = done / std::max(seconds, 1e-9), eta = (total - done) / std::max(rate, 1e-9);
+  if (tty) {
+    std::fprintf(stderr, "\rsimulated %zu/%zu frames, %.1f frames/s, ETA %.0f s   ", done, total, rate, eta);
+    if (done == total) std::fprintf(stderr, "\n");
+  } else if (done % 500 == 0 || done == total) {
+    spdlog::info("simulated {}/{} frames, {:.1f} frames/s, ETA {:.0f} s", done, total, rate, eta);
+  }
+}
+
+}  // namespace
+
+size_t write_simulation(const std::string& dir_name, const SimulationConfig& config, bool quiet) {
+  Simulator sim(config);
+  const fs::path dir(dir_name);
+  std::error_code ec;
+  fs::create_directories(dir / "velodyne", ec);
+  if (!ec && sim.realism().motion_distortion) fs::create_directories(dir / "point_times", ec);
+  if (!ec && sim.realism().labels) fs::create_directories(dir / "labels", ec);
+  if (ec) throw Error(dir_name + ": cannot create output folder (" + ec.message() + ")");
+  // Frames in parallel in small batches (each scan is parallel inside too), written in order.
+  const size_t batch = 8, n = sim.num_frames();
+  const bool tty = !quiet && isatty(2);
+  size_t total = 0;
+  Stopwatch watch;
+  std::vector<PointCloud> clouds(batch);
+  for (size_t start = 0; start < n; start += batch) {
+    const size_t count = std::min(batch, n - start);
+    tbb::parallel_for(size_t(0), count, [&](size_t k) { clouds[k] = sim.scan(start + k); });
+    for (size_t k = 0; k < count; ++k) {
+      write_scan(dir, start + k, clouds[k]);
+      total += clouds[k].size();
+    }
+    if (!quiet) report_progress(start + count, n, watch.ms() / 1000.0, tty);
+  }
+  write_metadata(dir, sim, config, total);
+  if (!quiet) {
+    spdlog::info("wrote {} scans ({:.0f} points each on average) of the '{}' scenario to {}: velodyne/{}{}, poses.txt, "
+                 "times.txt, scenario.json", n, static_cast<double>(total) / n, sim.scenario().name, dir_name,
+                 sim.realism().motion_distortion ? ", point_times/" : "", sim.realism().labels ? ", labels/" : "");
+  }
+  return total;
+}
+
+}  // namespace gcmap::sim
