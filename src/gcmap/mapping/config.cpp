@@ -2,6 +2,8 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <charconv>
+#include <cmath>
 #include <functional>
 #include <map>
 #include <sstream>
@@ -65,10 +67,36 @@ void visit(Config& c, Visitor&& v) {
   v("output", "pcd", c.output.pcd);
 }
 
+// Every section and key must be a known plain name.
+void check_known_keys(const YAML::Node& root, const std::string& path) {
+  std::map<std::string, std::map<std::string, bool>> known;
+  MappingConfig defaults;
+  visit(defaults, [&](const char* s, const char* k, auto&) { known[s][k] = true; });
+  for (const auto& section : root) {
+    if (!section.first.IsScalar()) throw Error(path + ": a section name must be a plain word");
+    const std::string s = section.first.Scalar();
+    if (!known.count(s)) throw Error(path + ": unknown section '" + s + "'");
+    if (!section.second.IsMap()) throw Error(path + ": section '" + s + "' must be a mapping");
+    for (const auto& kv : section.second) {
+      if (!kv.first.IsScalar()) throw Error(path + ": a key in section '" + s + "' must be a plain word");
+      const std::string k = kv.first.Scalar();
+      if (!known[s].count(k)) throw Error(path + ": unknown key '" + s + "." + k + "'");
+    }
+  }
+}
+
+// Doubles as the shortest text that reads back to the same value, so a dumped config reloads exactly.
+std::string format_double(double v) {
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof(buf), v);
+  return std::string(buf, r.ptr);
+}
+
 }  // namespace
 
-MappingConfig MappingConfig::load(const std::string& path) {
-  const std::string text = read_file(path);
+MappingConfig MappingConfig::load(const std::string& path) { return parse(read_file(path), path); }
+
+MappingConfig MappingConfig::parse(const std::string& text, const std::string& path) {
   YAML::Node root;
   try {
     root = YAML::Load(text);
@@ -78,28 +106,22 @@ MappingConfig MappingConfig::load(const std::string& path) {
   MappingConfig c;
   if (root.IsNull()) return c;
   if (!root.IsMap()) throw Error(path + ": expected a mapping of sections");
-  std::map<std::string, std::map<std::string, bool>> known;
-  visit(c, [&](const char* s, const char* k, auto&) { known[s][k] = true; });
-  for (const auto& section : root) {
-    const std::string s = section.first.as<std::string>();
-    if (!known.count(s)) throw Error(path + ": unknown section '" + s + "'");
-    if (!section.second.IsMap()) throw Error(path + ": section '" + s + "' must be a mapping");
-    for (const auto& kv : section.second) {
-      const std::string k = kv.first.as<std::string>();
-      if (!known[s].count(k)) throw Error(path + ": unknown key '" + s + "." + k + "'");
-    }
-  }
+  check_known_keys(root, path);
   const YAML::Node& croot = root;
   visit(c, [&](const char* s, const char* k, auto& field) {
     const YAML::Node section = croot[s];
     if (!section.IsDefined() || !section.IsMap()) return;
     const YAML::Node node = section[k];
     if (!node.IsDefined()) return;
+    using T = std::decay_t<decltype(field)>;
+    const std::string key = std::string(s) + "." + k;
     try {
-      field = node.as<std::decay_t<decltype(field)>>();
+      field = node.as<T>();
     } catch (const YAML::Exception&) {
-      throw Error(path + ": key '" + std::string(s) + "." + k + "' has an unreadable value");
+      throw Error(path + ": key '" + key + "' has an unreadable value");
     }
+    if constexpr (std::is_floating_point_v<T>)
+      if (!std::isfinite(field)) throw Error(path + ": key '" + key + "' must be a finite number");
   });
   try {
     c.validate();
@@ -119,7 +141,9 @@ std::string MappingConfig::to_yaml() const {
       current = s;
     }
     out << "  " << k << ": ";
-    if constexpr (std::is_same_v<std::decay_t<decltype(field)>, bool>) out << (field ? "true" : "false");
+    using T = std::decay_t<decltype(field)>;
+    if constexpr (std::is_same_v<T, bool>) out << (field ? "true" : "false");
+    else if constexpr (std::is_floating_point_v<T>) out << format_double(field);
     else out << field;
     out << "\n";
   });
