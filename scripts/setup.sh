@@ -5,7 +5,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 packages=(build-essential cmake pkg-config libeigen3-dev libtbb-dev libnanoflann-dev
-  libcli11-dev libyaml-cpp-dev libspdlog-dev libgtest-dev libbenchmark-dev)
+  libcli11-dev libyaml-cpp-dev libspdlog-dev libgtest-dev libbenchmark-dev clang libclang-rt-14-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
