@@ -2,6 +2,7 @@
 #include <array>
 #include <cstdio>
 #include <fstream>
+#include <regex>
 
 #include "gcmap/core/preprocess.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
@@ -83,6 +84,17 @@ TEST(Cli, HelpDocumentsDefaults) {
   EXPECT_EQ(r.code, 0);
   EXPECT_NE(r.out.find("--downsample"), std::string::npos);
   EXPECT_NE(r.out.find("0.25"), std::string::npos);
+}
+
+TEST(Cli, VersionOnEveryCommand) {
+  const RunResult top = run_cli("--version");
+  EXPECT_EQ(top.code, 0) << top.err;
+  EXPECT_TRUE(std::regex_match(top.out, std::regex("gcmap [0-9]+\\.[0-9]+\\.[0-9]+\n"))) << top.out;
+  for (const char* command : {"register", "optimize", "simulate", "eval", "mme", "map", "demo", "config"}) {
+    const RunResult r = run_cli(std::string(command) + " --version");
+    EXPECT_EQ(r.code, 0) << command << ": " << r.err;
+    EXPECT_EQ(r.out, top.out) << command;
+  }
 }
 
 }  // namespace

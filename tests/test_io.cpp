@@ -3,6 +3,7 @@
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/io/file.hpp"
+#include "gcmap/io/labels.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "test_util.hpp"
@@ -191,6 +192,54 @@ TEST(PointCloudIO, MalformedInputGivesOneLineErrors) {
   expect_error(dir / "magic.ply", "not a PLY file");
 }
 
+// Sizes a header declares are checked against the bytes that follow before anything is allocated.
+TEST(PointCloudIO, HeaderSizesAreCheckedAgainstTheData) {
+  test::TempDir dir;
+  const std::string xyz = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n";
+  write_bytes(dir / "many.pcd", xyz + "WIDTH 2000000000\nDATA ascii\n1 2 3\n");
+  expect_error(dir / "many.pcd", "the header declares 2000000000 points");
+  write_bytes(dir / "nowidth.pcd", xyz + "DATA ascii\n1 2 3\n");
+  expect_error(dir / "nowidth.pcd", "neither WIDTH nor POINTS");
+  write_bytes(dir / "wrap.pcd", xyz + "WIDTH 4611686018427387904\nHEIGHT 4\nDATA binary\n");
+  expect_error(dir / "wrap.pcd", "WIDTH*HEIGHT is too large");
+  write_bytes(dir / "count.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 4294967297 1\nWIDTH 1\nDATA ascii\n1 2 3\n");
+  expect_error(dir / "count.pcd", "unsupported TYPE/SIZE/COUNT");
+  write_bytes(dir / "eof.pcd", xyz + "WIDTH 1\nDATA binary");  // no byte after the header
+  expect_error(dir / "eof.pcd", "truncated (0 of 1 points)");
+  std::string sizes(8, '\0');
+  const uint32_t declared[2] = {4, 4294967292u};
+  std::memcpy(&sizes[0], declared, 8);
+  write_bytes(dir / "lzf.pcd", xyz + "WIDTH 357913941\nDATA binary_compressed\n" + sizes + "\x02" "abc");
+  expect_error(dir / "lzf.pcd", "4 bytes cannot expand to 4294967292");
+  const std::string ply = "ply\nformat binary_little_endian 1.0\nelement vertex 1537228672809129302\nproperty float x\n"
+                          "property float y\nproperty float z\nend_header\n";
+  write_bytes(dir / "wrap.ply", ply + std::string(8, '\0'));
+  expect_error(dir / "wrap.ply", "truncated (0 of 1537228672809129302 vertices)");
+}
+
+TEST(Labels, ReadsSemanticKittiLabelsAndChecksTheCount) {
+  test::TempDir dir;
+  const uint32_t labels[3] = {40, 252u | (7u << 16), 10};
+  write_bytes(dir / "a.label", std::string(reinterpret_cast<const char*>(labels), sizeof(labels)));
+  const std::vector<uint32_t> back = read_labels(dir / "a.label", 3);
+  ASSERT_EQ(back.size(), 3u);
+  EXPECT_EQ(semantic_class(back[1]), 252);
+  EXPECT_TRUE(is_moving_class(back[1]));
+  EXPECT_FALSE(is_moving_class(back[0]));
+  auto expect_label_error = [&](const std::string& path, size_t n, const std::string& what) {
+    try {
+      read_labels(path, n);
+      ADD_FAILURE() << path;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(path + ": " + what), std::string::npos) << e.what();
+    }
+  };
+  expect_label_error(dir / "a.label", 4, "3 labels for 4 points");
+  write_bytes(dir / "t.label", "1234567");
+  expect_label_error(dir / "t.label", 2, "size 7 is not a multiple of 4");
+  expect_label_error(dir / "missing.label", 1, "no such file");
+}
+
 TEST(TrajectoryIO, RoundTripsAndDetectsFormats) {
   test::TempDir dir;
   std::mt19937_64 rng(3);
@@ -224,6 +273,11 @@ TEST(TrajectoryIO, RoundTripsAndDetectsFormats) {
   EXPECT_THROW(read_trajectory(dir / "mixed.txt"), Error);
   write_bytes(dir / "empty.txt", "# nothing\n");
   EXPECT_THROW(read_trajectory(dir / "empty.txt"), Error);
+  // Finite numbers that are no pose: a scaled rotation block, an overflowing quaternion.
+  write_bytes(dir / "scaled.txt", "2 0 0 0 0 2 0 0 0 0 2 0\n");
+  EXPECT_THROW(read_trajectory(dir / "scaled.txt"), Error);
+  write_bytes(dir / "quat.txt", "0 1 2 3 1e200 0 0 1e200\n");
+  EXPECT_THROW(read_trajectory(dir / "quat.txt"), Error);
 }
 
 TEST(TrajectoryIO, ReadsRealKittiGroundTruth) {

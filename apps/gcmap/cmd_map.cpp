@@ -106,7 +106,7 @@ void add_demo(CLI::App& app, Runner& run) {
   auto ov = std::make_shared<Overrides>();
   auto* cmd = app.add_subcommand("demo", "Simulate a scenario, map it, and report accuracy against ground truth");
   cmd->add_option("-o,--output", opt->output, "Working folder (default: a temporary folder, removed afterwards)");
-  cmd->add_option("--scenario", opt->scenario, "small, loop or corridor")->capture_default_str();
+  cmd->add_option("--scenario", opt->scenario, "small, loop, corridor, city, highway or forest")->capture_default_str();
   cmd->add_option("--frames", opt->frames, "Number of frames (0 = the scenario's default)")->capture_default_str();
   cmd->add_option("--seed", opt->seed, "Simulation seed")->capture_default_str();
   ov->add(cmd);

@@ -56,12 +56,16 @@ int main(int argc, char** argv) {
   gcmap::cli::add_plot(app, run);
   gcmap::cli::add_view(app, run);
   gcmap::cli::add_bag_info(app, run);
+  app.set_version_flag("--version", "gcmap " GCMAP_VERSION);
+  for (CLI::App* sub : app.get_subcommands({})) sub->set_version_flag("--version", "gcmap " GCMAP_VERSION);
 
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
   } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     std::cerr << "gcmap: " << e.what() << " (see --help)\n";

@@ -1,4 +1,7 @@
 #pragma once
+#include <sys/resource.h>
+
+#include <cstddef>
 #ifdef __GLIBC__
 #include <malloc.h>
 #endif
@@ -13,6 +16,17 @@ inline void keep_large_buffers_in_heap() {
 #ifdef __GLIBC__
   mallopt(M_MMAP_THRESHOLD, 256 << 20);
   mallopt(M_TRIM_THRESHOLD, 1 << 30);
+#endif
+}
+
+// Peak resident set size of this process so far, in bytes (getrusage); 0 when unavailable.
+inline size_t peak_rss_bytes() {
+  rusage usage{};
+  if (getrusage(RUSAGE_SELF, &usage) != 0) return 0;
+#ifdef __APPLE__
+  return static_cast<size_t>(usage.ru_maxrss);  // bytes there, KiB on Linux
+#else
+  return static_cast<size_t>(usage.ru_maxrss) * 1024;
 #endif
 }
 

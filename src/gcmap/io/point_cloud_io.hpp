@@ -1,5 +1,6 @@
 #pragma once
 #include <string>
+#include <string_view>
 
 #include "gcmap/core/point_cloud.hpp"
 
@@ -21,7 +22,13 @@ void write_pcd(const std::string& path, const PointCloud& cloud);
 void write_bin(const std::string& path, const PointCloud& cloud, BinFields fields = BinFields::xyzi);
 void write_point_cloud(const std::string& path, const PointCloud& cloud, BinFields bin_fields = BinFields::xyzi);  // by extension
 
+// The parsers behind read_point_cloud, on bytes in memory (fuzzed): `name` stands for the path in
+// messages. They keep non-finite points; read_point_cloud drops them.
+PointCloud parse_bin(std::string_view data, BinFields fields, const std::string& name);
+PointCloud parse_pcd(std::string_view data, const std::string& name);
+PointCloud parse_ply(std::string_view data, const std::string& name);
+
 // LZF as used by PCD binary_compressed. Throws on corrupt input.
-std::string lzf_decompress(const std::string& in, size_t expected_size);
+std::string lzf_decompress(std::string_view in, size_t expected_size);
 
 }  // namespace gcmap

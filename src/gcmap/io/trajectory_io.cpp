@@ -26,6 +26,15 @@ bool to_double(const std::string& s, double& v) {
   return r.ec == std::errc() && r.ptr == s.data() + s.size();
 }
 
+// The rotation block of a 3x4 [R t] read from a file must be one, up to the file's rounding: a
+// garbage matrix would otherwise become a NaN or arbitrary pose.
+bool rotation_block_ok(const double* m) {
+  Eigen::Matrix3d R;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) R(r, c) = m[r * 4 + c];
+  return (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-2 && R.determinant() > 0;
+}
+
 Eigen::Isometry3d pose_from_rows(const double* m) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   for (int r = 0; r < 3; ++r) {
@@ -43,9 +52,10 @@ TrajectoryFormat parse_trajectory_format(const std::string& name) {
   throw Error("--format: expected kitti or tum, got '" + name + "'");
 }
 
-Trajectory read_trajectory(const std::string& path) {
-  const std::string data = read_file(path);
-  std::istringstream in(data);
+Trajectory read_trajectory(const std::string& path) { return parse_trajectory(read_file(path), path); }
+
+Trajectory parse_trajectory(std::string_view text, const std::string& path) {
+  std::istringstream in{std::string(text)};
   Trajectory traj;
   bool detected = false;
   std::string line;
@@ -75,10 +85,12 @@ Trajectory read_trajectory(const std::string& path) {
         throw Error(where + "bad or non-finite number '" + tok[k] + "'");
     }
     if (fmt == TrajectoryFormat::kitti) {
+      if (!rotation_block_ok(v)) throw Error(where + "the 3x3 block is not a rotation matrix");
       traj.poses.push_back(pose_from_rows(v));
     } else {
       const double qn = std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]);
       if (qn < 1e-6) throw Error(where + "zero quaternion");
+      if (!std::isfinite(qn)) throw Error(where + "quaternion too large to normalize");
       traj.poses.push_back(pose_from_xyz_quat(v));
       if (fmt == TrajectoryFormat::tum) {
         if (!std::isfinite(first)) throw Error(where + "non-finite timestamp");
@@ -115,9 +127,10 @@ void write_trajectory(const std::string& path, const Trajectory& traj) {
   });
 }
 
-Eigen::Isometry3d read_kitti_calib_tr(const std::string& path) {
-  const std::string data = read_file(path);
-  std::istringstream in(data);
+Eigen::Isometry3d read_kitti_calib_tr(const std::string& path) { return parse_kitti_calib_tr(read_file(path), path); }
+
+Eigen::Isometry3d parse_kitti_calib_tr(std::string_view text, const std::string& path) {
+  std::istringstream in{std::string(text)};
   std::string line;
   while (std::getline(in, line)) {
     auto tok = tokens(line);
@@ -125,6 +138,7 @@ Eigen::Isometry3d read_kitti_calib_tr(const std::string& path) {
       double v[12];
       for (int k = 0; k < 12; ++k)
         if (!to_double(tok[k + 1], v[k]) || !std::isfinite(v[k])) throw Error(path + ": bad number in Tr");
+      if (!rotation_block_ok(v)) throw Error(path + ": the 3x3 block of Tr is not a rotation matrix");
       return pose_from_rows(v);
     }
   }

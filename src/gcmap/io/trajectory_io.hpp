@@ -1,6 +1,7 @@
 #pragma once
 #include <Eigen/Geometry>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace gcmap {
@@ -20,11 +21,14 @@ struct Trajectory {
 // Detects the format from the first data line; every line must agree. Comments (#) and blank lines
 // are skipped. Throws Error("PATH:LINE: ...") on anything malformed or non-finite.
 Trajectory read_trajectory(const std::string& path);
+// The same on text in memory (fuzzed); `name` stands for the path in messages.
+Trajectory parse_trajectory(std::string_view text, const std::string& name);
 void write_trajectory(const std::string& path, const Trajectory& trajectory);
 
 TrajectoryFormat parse_trajectory_format(const std::string& name);
 
 // KITTI calib.txt: returns Tr (velodyne -> camera 0).
 Eigen::Isometry3d read_kitti_calib_tr(const std::string& path);
+Eigen::Isometry3d parse_kitti_calib_tr(std::string_view text, const std::string& name);
 
 }  // namespace gcmap

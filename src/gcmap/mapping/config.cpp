@@ -2,6 +2,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <charconv>
 #include <cmath>
 #include <functional>
 #include <map>
@@ -86,6 +87,31 @@ void visit(Config& c, Visitor&& v) {
   v("output", "pcd", c.output.pcd);
 }
 
+// Every section and key must be a known plain name.
+void check_known_keys(const YAML::Node& root, const std::string& path) {
+  std::map<std::string, std::map<std::string, bool>> known;
+  MappingConfig defaults;
+  visit(defaults, [&](const char* s, const char* k, auto&) { known[s][k] = true; });
+  for (const auto& section : root) {
+    if (!section.first.IsScalar()) throw Error(path + ": a section name must be a plain word");
+    const std::string s = section.first.Scalar();
+    if (!known.count(s)) throw Error(path + ": unknown section '" + s + "'");
+    if (!section.second.IsMap()) throw Error(path + ": section '" + s + "' must be a mapping");
+    for (const auto& kv : section.second) {
+      if (!kv.first.IsScalar()) throw Error(path + ": a key in section '" + s + "' must be a plain word");
+      const std::string k = kv.first.Scalar();
+      if (!known[s].count(k)) throw Error(path + ": unknown key '" + s + "." + k + "'");
+    }
+  }
+}
+
+// Doubles as the shortest text that reads back to the same value, so a dumped config reloads exactly.
+std::string format_double(double v) {
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof(buf), v);
+  return std::string(buf, r.ptr);
+}
+
 }  // namespace
 
 const char* to_string(GlobalMode mode) { return kGlobalModes[static_cast<int>(mode)].second; }
@@ -107,17 +133,7 @@ MappingConfig MappingConfig::parse(const std::string& text, const std::string& p
   MappingConfig c;
   if (root.IsNull()) return c;
   if (!root.IsMap()) throw Error(path + ": expected a mapping of sections");
-  std::map<std::string, std::map<std::string, bool>> known;
-  visit(c, [&](const char* s, const char* k, auto&) { known[s][k] = true; });
-  for (const auto& section : root) {
-    const std::string s = section.first.as<std::string>();
-    if (!known.count(s)) throw Error(path + ": unknown section '" + s + "'");
-    if (!section.second.IsMap()) throw Error(path + ": section '" + s + "' must be a mapping");
-    for (const auto& kv : section.second) {
-      const std::string k = kv.first.as<std::string>();
-      if (!known[s].count(k)) throw Error(path + ": unknown key '" + s + "." + k + "'");
-    }
-  }
+  check_known_keys(root, path);
   const YAML::Node& croot = root;
   visit(c, [&](const char* s, const char* k, auto& field) {
     const YAML::Node section = croot[s];
@@ -135,6 +151,8 @@ MappingConfig MappingConfig::parse(const std::string& text, const std::string& p
     } catch (const YAML::Exception&) {
       throw Error(path + ": key '" + key + "' has an unreadable value");
     }
+    if constexpr (std::is_floating_point_v<T>)
+      if (!std::isfinite(field)) throw Error(path + ": key '" + key + "' must be a finite number");
   });
   try {
     c.validate();
@@ -154,8 +172,10 @@ std::string MappingConfig::to_yaml() const {
       current = s;
     }
     out << "  " << k << ": ";
-    if constexpr (std::is_same_v<std::decay_t<decltype(field)>, bool>) out << (field ? "true" : "false");
-    else if constexpr (std::is_enum_v<std::decay_t<decltype(field)>>) out << to_string(field);
+    using T = std::decay_t<decltype(field)>;
+    if constexpr (std::is_same_v<T, bool>) out << (field ? "true" : "false");
+    else if constexpr (std::is_enum_v<T>) out << to_string(field);
+    else if constexpr (std::is_floating_point_v<T>) out << format_double(field);
     else out << field;
     out << "\n";
   });

@@ -117,8 +117,8 @@ struct MappingConfig {
 
   // Throws Error("PATH: ...") naming the offending key.
   static MappingConfig load(const std::string& path);
-  // The same from YAML text; `origin` prefixes errors (a path, or e.g. "config").
-  static MappingConfig parse(const std::string& yaml, const std::string& origin);
+  // The same on YAML text in memory (fuzzed); `name` stands for the path in messages.
+  static MappingConfig parse(const std::string& yaml, const std::string& name);
   std::string to_yaml() const;
   void validate() const;
 
