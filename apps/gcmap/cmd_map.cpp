@@ -6,6 +6,7 @@
 
 #include "commands.hpp"
 #include "gcmap/core/error.hpp"
+#include "gcmap/core/memory.hpp"
 #include "gcmap/eval/map_entropy.hpp"
 #include "gcmap/eval/trajectory_metrics.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
@@ -85,8 +86,9 @@ void add_map(CLI::App& app, Runner& run) {
       const MapRunResult r = run_mapping(*opt);
       std::printf("{\"frames\":%zu,\"submaps\":%zu,\"factors\":%zu,\"seconds\":%.3f,\"frames_per_second\":%.2f}\n", r.frames,
                   r.submaps, r.factors, r.seconds, r.fps);
-      std::fprintf(stderr, "%s %zu frames in %.1f s (%.1f frames/s): %zu submaps, %zu global factors.\n",
-                   r.signal ? "Interrupted: mapped" : "Mapped", r.frames, r.seconds, r.fps, r.submaps, r.factors);
+      std::fprintf(stderr, "%s %zu frames in %.1f s (%.1f frames/s): %zu submaps, %zu global factors; peak memory %.0f MB.\n",
+                   r.signal ? "Interrupted: mapped" : "Mapped", r.frames, r.seconds, r.fps, r.submaps, r.factors,
+                   peak_rss_bytes() / 1e6);
       std::fprintf(stderr, "Wrote %s: trajectory.kitti and .tum (optimized poses), odometry.kitti, map.ply%s, graph.json, stats.json%s, config.yaml, session/ (for localize and merge).\n",
                    opt->output.c_str(), opt->config.output.pcd ? " and map.pcd" : "", r.signal ? " (marked partial)" : "");
       if (!ov->no_render)

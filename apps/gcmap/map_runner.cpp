@@ -9,6 +9,7 @@
 #include <fstream>
 
 #include "gcmap/core/error.hpp"
+#include "gcmap/core/memory.hpp"
 #include "gcmap/cuda/cuda_backend.hpp"
 #include "gcmap/io/bag_scans.hpp"
 #include "gcmap/io/file.hpp"
@@ -111,6 +112,7 @@ void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapR
   const Json graph = graph_json(pipeline, frame_offset);
   write_file_atomic((out / "graph.json").string(), [&](std::ostream& s) { s << graph.dump() << "\n"; });
   Json stats = stats_json(pipeline);
+  stats["peak_rss_mb"] = peak_rss_bytes() / 1e6;
   stats["partial"] = signal != 0;
   if (signal) stats["interrupted_by"] = signal == SIGINT ? "SIGINT" : "SIGTERM";
   write_file_atomic((out / "stats.json").string(), [&](std::ostream& s) { s << stats.dump() << "\n"; });
