@@ -8,6 +8,7 @@
 #include <map>
 
 #include "gcmap/core/error.hpp"
+#include "gcmap/io/bag_scans.hpp"
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/labels.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
@@ -22,6 +23,16 @@ namespace fs = std::filesystem;
 
 void check_cloud(const PointCloud& c) {
   EXPECT_TRUE(c.intensities.empty() || c.intensities.size() == c.points.size());
+}
+
+// Every message of a bag, point clouds decoded, as the bag fuzz targets read it.
+void read_bag(BagFormat format, const std::string& d, const std::string& n) {
+  auto bag = open_bag_bytes(format, d, n);
+  for (const BagTopic& topic : bag->topics()) {
+    auto cursor = bag->read(topic.name);
+    for (BagMessage m; cursor->next(m);)
+      if (is_pointcloud2_type(topic.type) || is_livox_type(topic.type)) check_cloud(decode_scan(topic, m.data, n).cloud);
+  }
 }
 
 // Each fuzz target's parser on one input; throws what the parser throws.
@@ -60,6 +71,18 @@ const std::map<std::string, std::function<void(const std::string&, const std::st
          const std::string_view body(d.data() + 1, d.size() - 1);
          const size_t expected = body.size() / 4 + static_cast<unsigned char>(d[0]) % 3 - 1;
          EXPECT_EQ(parse_labels(body, expected, n).size(), expected);
+       }},
+      {"fuzz_bag_mcap", [](const std::string& d, const std::string& n) { read_bag(BagFormat::mcap, d, n); }},
+      {"fuzz_bag_ros1", [](const std::string& d, const std::string& n) { read_bag(BagFormat::ros1, d, n); }},
+      {"fuzz_bag_db3", [](const std::string& d, const std::string& n) { read_bag(BagFormat::db3, d, n); }},
+      {"fuzz_bag_messages",
+       [](const std::string& d, const std::string& n) {
+         // As the fuzz target: the first byte picks the message type and encoding.
+         if (d.empty()) throw Error(n + ": empty");
+         BagTopic topic;
+         topic.type = d[0] & 1 ? "livox_ros_driver2/msg/CustomMsg" : "sensor_msgs/msg/PointCloud2";
+         topic.encoding = d[0] & 2 ? MessageEncoding::cdr : MessageEncoding::ros1;
+         check_cloud(decode_scan(topic, std::string_view(d).substr(1), n).cloud);
        }},
       {"fuzz_config",
        [](const std::string& d, const std::string& n) {
