@@ -49,10 +49,11 @@ struct OdometryConfig {
   // last), at most max_interval_ratio; after a gap over max_gap s no motion is predicted.
   double max_interval_ratio = 10.0;
   double max_gap = 2.0;  // s
-  // A registration landing over retry_distance m from the prediction with fewer than
-  // retry_inlier_fraction of the points matched is retried from zero motion.
+  // A registration matching fewer than retry_inlier_fraction of the points is retried (zero
+  // motion, coarser voxels); if it still does and lands over retry_distance m from the prediction,
+  // the frame is placed by the prediction. In our simulated drives good matches reach 0.89-0.96.
   double retry_distance = 1.0;
-  double retry_inlier_fraction = 0.5;
+  double retry_inlier_fraction = 0.7;
 };
 
 struct LocalMappingConfig {

@@ -70,15 +70,21 @@ Eigen::Isometry3d Odometry::estimate(const PointCloud& frame, const Eigen::Isome
   RegistrationConfig reg;
   reg.max_iterations = config_.max_iterations;
   const double min_inliers = config_.retry_inlier_fraction * frame.size();
-  auto suspect = [&](const RegistrationResult& r) {
-    return r.num_inliers < min_inliers && (guess.inverse() * r.T_target_source).translation().norm() > config_.retry_distance;
-  };
   RegistrationResult r = align_vgicp(frame, *model_, guess, reg);
-  if (suspect(r)) {
-    const RegistrationResult retry = align_vgicp(frame, *model_, last_, reg);
-    if (retry.num_inliers > r.num_inliers || (retry.num_inliers == r.num_inliers && retry.error < r.error)) r = retry;
+  if (r.num_inliers < min_inliers) {
+    // Low overlap: a wrong prediction (a gap, a turn) may have led into a local minimum. Retry
+    // from zero motion and, with twice the voxel size (a wider basin), from both guesses.
+    GaussianVoxelMap coarse(2.0 * config_.voxel_resolution);
+    for (const auto& [pose, cloud] : keyframes_) coarse.insert(*cloud, pose);
+    coarse.finalize();
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Isometry3d from = k == 0 ? last_ : align_vgicp(frame, coarse, k == 1 ? guess : last_, reg).T_target_source;
+      const RegistrationResult retry = align_vgicp(frame, *model_, from, reg);
+      if (retry.num_inliers > r.num_inliers || (retry.num_inliers == r.num_inliers && retry.error < r.error)) r = retry;
+    }
   }
-  const bool bad = r.num_inliers <= 50 || suspect(r);
+  const bool far = (guess.inverse() * r.T_target_source).translation().norm() > config_.retry_distance;
+  const bool bad = r.num_inliers <= 50 || (r.num_inliers < min_inliers && far);
   if (failed) *failed = bad;
   return bad ? guess : r.T_target_source;
 }

@@ -22,10 +22,10 @@ class Odometry {
                           bool* ok = nullptr);
   // The two halves of track() for a usable frame: scan-to-model registration from a guess (no
   // state change), then the accepted pose and possibly a new keyframe of the model.
-  // A registration that lands more than odometry.retry_distance from the guess with fewer than
-  // odometry.retry_inlier_fraction of the points matched is retried from zero motion (the last
-  // pose) and the result with more inliers is kept; when that is still such a result, or too few
-  // points match, the guess is returned and *failed set.
+  // A registration matching fewer than odometry.retry_inlier_fraction of the points is retried
+  // from zero motion (the last pose) and on coarser voxels, the result with most inliers kept;
+  // when that still matches so few and lands over odometry.retry_distance from the guess, or
+  // hardly any point matches, the guess is returned and *failed set.
   Eigen::Isometry3d estimate(const PointCloud& frame, const Eigen::Isometry3d& guess, bool* failed = nullptr) const;
   void accept(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T,
               std::optional<double> stamp = std::nullopt);
