@@ -27,6 +27,7 @@ struct Overrides {
   bool pcd = false;
   bool no_explicit_loops = false;
   bool no_render = false;
+  bool no_deskew = false, deskew_from_azimuth = false;
   int threads = 0;
   std::string device = "auto";
 
@@ -40,6 +41,9 @@ struct Overrides {
     cmd->add_flag("--pcd", pcd, "Also write map.pcd");
     cmd->add_flag("--no-explicit-loops", no_explicit_loops, "No ScanContext loop constraints (loop.enabled: false)");
     cmd->add_flag("--no-render", no_render, "Do not draw map.png (and, for demo, view.html and plots/)");
+    cmd->add_flag("--no-deskew", no_deskew, "No motion compensation of scans with per-point times (preprocess.deskew: false)");
+    cmd->add_flag("--deskew-from-azimuth", deskew_from_azimuth,
+                  "Scans without per-point times: derive them from the azimuth of a spinning sensor (preprocess.deskew_from_azimuth)");
     cmd->add_option("--threads", threads, "Worker threads (0 = all cores)")->capture_default_str();
   }
   MappingConfig resolve() const {
@@ -50,6 +54,8 @@ struct Overrides {
     if (map_resolution >= 0) c.output.map_resolution = map_resolution;
     if (pcd) c.output.pcd = true;
     if (no_explicit_loops) c.loop.enabled = false;
+    if (no_deskew) c.preprocess.deskew = false;
+    if (deskew_from_azimuth) c.preprocess.deskew_from_azimuth = true;
     try {
       c.validate();
     } catch (const Error& e) {

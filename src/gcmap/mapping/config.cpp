@@ -40,11 +40,19 @@ void visit(Config& c, Visitor&& v) {
   v("preprocess", "kitti_vertical_correction", c.preprocess.kitti_vertical_correction);
   v("preprocess", "remove_dynamic_labels", c.preprocess.remove_dynamic_labels);
   v("preprocess", "deskew", c.preprocess.deskew);
+  v("preprocess", "deskew_from_azimuth", c.preprocess.deskew_from_azimuth);
+  v("preprocess", "sweep_period", c.preprocess.sweep_period);
+  v("preprocess", "sweep_start_deg", c.preprocess.sweep_start_deg);
+  v("preprocess", "sweep_clockwise", c.preprocess.sweep_clockwise);
   v("odometry", "voxel_resolution", c.odometry.voxel_resolution);
   v("odometry", "model_keyframes", c.odometry.model_keyframes);
   v("odometry", "keyframe_distance", c.odometry.keyframe_distance);
   v("odometry", "keyframe_angle_deg", c.odometry.keyframe_angle_deg);
   v("odometry", "max_iterations", c.odometry.max_iterations);
+  v("odometry", "max_interval_ratio", c.odometry.max_interval_ratio);
+  v("odometry", "max_gap", c.odometry.max_gap);
+  v("odometry", "retry_distance", c.odometry.retry_distance);
+  v("odometry", "retry_inlier_fraction", c.odometry.retry_inlier_fraction);
   v("local", "th_max", c.local.th_max);
   v("local", "th_min", c.local.th_min);
   v("local", "max_keyframes", c.local.max_keyframes);
@@ -192,6 +200,11 @@ void MappingConfig::validate() const {
   need(odometry.voxel_resolution > 0, "odometry.voxel_resolution must be positive");
   need(odometry.model_keyframes >= 1, "odometry.model_keyframes must be >= 1");
   need(odometry.max_iterations >= 1, "odometry.max_iterations must be >= 1");
+  need(preprocess.sweep_period > 0 && std::isfinite(preprocess.sweep_start_deg),
+       "preprocess.sweep_period must be positive, preprocess.sweep_start_deg finite");
+  need(odometry.max_interval_ratio >= 1 && odometry.max_gap > 0, "odometry.max_interval_ratio must be >= 1, odometry.max_gap positive");
+  need(odometry.retry_distance > 0 && odometry.retry_inlier_fraction >= 0 && odometry.retry_inlier_fraction <= 1,
+       "odometry.retry_distance must be positive, odometry.retry_inlier_fraction in [0, 1]");
   need(local.th_max > 0 && local.th_max <= 1, "local.th_max must be in (0, 1]");
   need(local.th_min >= 0 && local.th_min < local.th_max, "local.th_min must be in [0, local.th_max)");
   need(local.max_keyframes >= 2, "local.max_keyframes must be >= 2");

@@ -1,6 +1,7 @@
 #pragma once
 #include <deque>
 #include <memory>
+#include <optional>
 
 #include "gcmap/core/gaussian_voxel_map.hpp"
 #include "gcmap/mapping/config.hpp"
@@ -8,31 +9,43 @@
 namespace gcmap {
 
 // LiDAR-only front end: scan-to-model VGICP against a voxel map of recent keyframes, started from
-// a constant-velocity prediction.
+// a constant-velocity prediction that follows the scan stamps (frames without stamps are taken
+// as equally spaced).
 class Odometry {
  public:
   explicit Odometry(const OdometryConfig& config) : config_(config) {}
 
-  // T_world_frame of a preprocessed frame (with covariances). A frame too small to register (empty
-  // or dropped scan) gets the constant-velocity prediction and *ok = false.
-  Eigen::Isometry3d track(const std::shared_ptr<const PointCloud>& frame, bool* ok = nullptr);
+  // T_world_frame of a preprocessed frame (with covariances) taken at `stamp` (s). A frame too
+  // small to register (empty or dropped scan) gets the prediction and *ok = false; a frame whose
+  // registration fails (see estimate) gets the prediction and last_failed().
+  Eigen::Isometry3d track(const std::shared_ptr<const PointCloud>& frame, std::optional<double> stamp = std::nullopt,
+                          bool* ok = nullptr);
   // The two halves of track() for a usable frame: scan-to-model registration from a guess (no
   // state change), then the accepted pose and possibly a new keyframe of the model.
-  Eigen::Isometry3d estimate(const PointCloud& frame, const Eigen::Isometry3d& guess) const;
-  void accept(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T);
+  // A registration matching fewer than odometry.retry_inlier_fraction of the points is retried
+  // from zero motion (the last pose) and on coarser voxels, the result with most inliers kept;
+  // when that still matches so few and lands over odometry.retry_distance from the guess, or
+  // hardly any point matches, the guess is returned and *failed set.
+  Eigen::Isometry3d estimate(const PointCloud& frame, const Eigen::Isometry3d& guess, bool* failed = nullptr) const;
+  void accept(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T,
+              std::optional<double> stamp = std::nullopt);
   bool has_model() const { return model_ != nullptr; }
+  bool last_failed() const { return last_failed_; }
 
-  // The constant-velocity guess for the next frame (also used for frames that fail to load).
-  Eigen::Isometry3d predict() const;
+  // The constant-velocity guess for a frame at `stamp` (also used for frames that fail to load):
+  // the last motion scaled by the ratio of the intervals in the tangent space.
+  Eigen::Isometry3d predict(std::optional<double> stamp = std::nullopt) const;
   // Accepts an externally given pose (e.g. --initial-trajectory) to keep the motion model going.
-  void set_pose(const Eigen::Isometry3d& T);
+  void set_pose(const Eigen::Isometry3d& T, std::optional<double> stamp = std::nullopt);
 
  private:
   void add_keyframe(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T);
 
   OdometryConfig config_;
   int frames_ = 0;
+  bool last_failed_ = false;
   Eigen::Isometry3d last_ = Eigen::Isometry3d::Identity(), previous_ = Eigen::Isometry3d::Identity();
+  std::optional<double> last_stamp_, previous_stamp_;
   std::deque<std::pair<Eigen::Isometry3d, std::shared_ptr<const PointCloud>>> keyframes_;
   std::unique_ptr<GaussianVoxelMap> model_;
 };

@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_pipeline.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "gcmap/core/deskew.hpp"
@@ -38,6 +39,20 @@ void remove_moving_labels(PointCloud& c) {
 
 }  // namespace
 
+void times_from_azimuth(PointCloud& cloud, const PreprocessConfig& config) {
+  const double start = config.sweep_start_deg * M_PI / 180.0;
+  // float(period * fraction) may round up to the period itself: the last float below it instead.
+  const float last = std::nextafter(static_cast<float>(config.sweep_period), 0.f);
+  cloud.times.resize(cloud.size());
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3f& p = cloud.points[i];
+    const double angle = std::atan2(static_cast<double>(p.y()), static_cast<double>(p.x())) - start;
+    double fraction = (config.sweep_clockwise ? -angle : angle) / (2.0 * M_PI);
+    fraction -= std::floor(fraction);
+    cloud.times[i] = std::min(static_cast<float>(config.sweep_period * fraction), last);
+  }
+}
+
 MappingPipeline::MappingPipeline(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend,
                                  PipelineOptions options)
     : config_(config),
@@ -62,6 +77,7 @@ PreparedScan prepare_scan(PointCloud raw, double stamp, const MappingConfig& con
     spdlog::warn("scan at {:.6f} s: {} labels for {} points, ignored", stamp, raw.labels.size(), raw.size());
     raw.labels.clear();
   }
+  if (config.preprocess.deskew_from_azimuth && !raw.has_times()) times_from_azimuth(raw, config.preprocess);
   if (config.preprocess.remove_dynamic_labels && raw.has_labels()) remove_moving_labels(raw);
   raw.labels.clear();  // not averaged per voxel: nothing downstream reads them
   if (options.kitti_hdl64 && config.preprocess.kitti_vertical_correction) kitti_vertical_correction(raw);
@@ -78,32 +94,36 @@ Frame MappingPipeline::add_scan(PointCloud scan, double stamp, std::optional<Eig
 }
 
 Eigen::Isometry3d MappingPipeline::track(const std::shared_ptr<PointCloud>& cloud, double stamp,
-                                         const std::optional<Eigen::Isometry3d>& T_odom, bool* deskewed) {
+                                         const std::optional<Eigen::Isometry3d>& T_odom, Frame& f) {
   const size_t n = odometry_poses_.size();
   const double dt = n ? stamp - stamps_[n - 1] : 0.0;
   const bool timed = cloud && cloud->has_times() && config_.preprocess.deskew && dt > 1e-6;
   if (T_odom) {
     if (timed) {
       deskew(*cloud, se3_log(odometry_poses_[n - 1].inverse() * *T_odom) / dt);
-      *deskewed = true;
+      f.deskewed = true;
     }
-    odometry_.set_pose(*T_odom);
+    odometry_.set_pose(*T_odom, stamp);
     return *T_odom;
   }
-  if (!timed || !odometry_.has_model() || cloud->size() < 100 || !cloud->has_covs()) return odometry_.track(cloud);
+  if (!timed || !odometry_.has_model() || cloud->size() < 100 || !cloud->has_covs()) {
+    const Eigen::Isometry3d T = odometry_.track(cloud, stamp);
+    f.odometry_failed = odometry_.last_failed();
+    return T;
+  }
   // The motion over the interval that ends at this scan stands for the motion within its sweep:
   // first the prediction, then the motion to where the deskewed scan registered. Deskewing with a
   // stale velocity alone feeds its error back into the next velocity.
   const PointCloud raw = *cloud;
   const Eigen::Isometry3d prev = odometry_poses_[n - 1];
-  Eigen::Isometry3d T = odometry_.predict();
+  Eigen::Isometry3d T = odometry_.predict(stamp);
   for (int pass = 0; pass < 2; ++pass) {
     *cloud = raw;
     deskew(*cloud, se3_log(prev.inverse() * T) / dt);
-    T = odometry_.estimate(*cloud, T);
+    T = odometry_.estimate(*cloud, T, &f.odometry_failed);
   }
-  odometry_.accept(cloud, T);
-  *deskewed = true;
+  odometry_.accept(cloud, T, stamp);
+  f.deskewed = true;
   return T;
 }
 
@@ -121,7 +141,13 @@ Frame MappingPipeline::add_prepared(PreparedScan scan, std::optional<Eigen::Isom
   }
   preprocess_ms_.add(scan.preprocess_ms);
   Stopwatch w;
-  f.T_odom = track(scan.cloud, scan.stamp, T_odom, &f.deskewed);
+  f.T_odom = track(scan.cloud, scan.stamp, T_odom, f);
+  if (f.odometry_failed) {
+    spdlog::warn("scan {}: odometry failed (too few matches, or far from the prediction with little overlap), "
+                 "placed by the prediction",
+                 f.index);
+    ++odometry_failures_;
+  }
   odometry_ms_.add(w.lap_ms());
   stamps_.push_back(scan.stamp);
   odometry_poses_.push_back(f.T_odom);
@@ -144,6 +170,7 @@ PipelineStats MappingPipeline::stats() const {
   PipelineStats s;
   s.frames = stamps_.size();
   s.unusable = unusable_;
+  s.odometry_failures = odometry_failures_;
   s.preprocess = preprocess_ms_;
   s.odometry = odometry_ms_;
   s.mapper = mapper_.stats();

@@ -29,10 +29,12 @@ struct Frame {
   Eigen::Isometry3d T_odom = Eigen::Isometry3d::Identity();  // odometry, or the given guess
   size_t points = 0;    // after preprocessing
   bool deskewed = false;
+  bool odometry_failed = false;  // registration rejected (see Odometry::estimate): placed by the prediction
 };
 
 struct PipelineStats {
   size_t frames = 0, unusable = 0;
+  size_t odometry_failures = 0;  // frames with Frame::odometry_failed
   TimingStats preprocess, odometry;  // preprocess overlaps the other stages in run()
   MapperStats mapper;
   double seconds = 0.0;  // from construction to finish()
@@ -47,6 +49,10 @@ struct PreparedScan {
 };
 
 // Corrections, label-based removal, downsampling and covariances of one raw scan (thread-safe).
+// Per-point times of a spinning sensor's sweep from each point's azimuth (preprocess.sweep_*), in
+// [0, sweep_period); prepare_scan sets them when preprocess.deskew_from_azimuth is on and the scan has none.
+void times_from_azimuth(PointCloud& cloud, const PreprocessConfig& config);
+
 PreparedScan prepare_scan(PointCloud raw, double stamp, const MappingConfig& config, const PipelineOptions& options);
 
 class MappingPipeline {
@@ -95,7 +101,7 @@ class MappingPipeline {
 
  private:
   Eigen::Isometry3d track(const std::shared_ptr<PointCloud>& cloud, double stamp,
-                          const std::optional<Eigen::Isometry3d>& T_odom, bool* deskewed);
+                          const std::optional<Eigen::Isometry3d>& T_odom, Frame& f);
 
   MappingConfig config_;
   std::shared_ptr<LinearizationBackend> backend_;
@@ -105,7 +111,7 @@ class MappingPipeline {
   std::vector<double> stamps_;
   std::vector<FrameStatus> statuses_;
   std::vector<Eigen::Isometry3d> odometry_poses_;
-  size_t unusable_ = 0;
+  size_t unusable_ = 0, odometry_failures_ = 0;
   TimingStats preprocess_ms_, odometry_ms_;
   Stopwatch clock_;
   double seconds_ = 0.0;

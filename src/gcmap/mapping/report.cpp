@@ -71,6 +71,7 @@ Json stats_json(const MappingPipeline& pipeline) {
   Json stats = Json::object();
   stats["frames"] = ps.frames;
   stats["unusable_scans"] = ps.unusable;
+  stats["odometry_failures"] = ps.odometry_failures;
   stats["seconds"] = ps.seconds;
   stats["frames_per_second"] = ps.seconds > 0 ? ps.frames / ps.seconds : 0.0;
   stats["device"] = pipeline.backend().name();

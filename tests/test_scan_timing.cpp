@@ -1,0 +1,120 @@
+// Scan timing: odometry on irregular frame intervals (dropped messages, jittered stamps), and
+// per-point times derived from the azimuth of a spinning sensor.
+#include <tbb/parallel_for.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <random>
+
+#include "gcmap/mapping/pipeline.hpp"
+#include "gcmap/sim/simulator.hpp"
+#include "test_util.hpp"
+
+namespace gcmap {
+namespace {
+
+// The `small` drive (10 Hz, true stamps 0.1 * f, about 1.1 m per frame) with 30 % of its frames
+// dropped at random and +-10 ms of stamp jitter: the constant-velocity prediction must follow
+// the real intervals, so each relative motion between kept frames stays within 0.2 m of the truth.
+TEST(OdometryTiming, DroppedFramesAndJitteredStampsKeepFrameToFrameErrorsSmall) {
+  sim::SimulationConfig cfg;
+  cfg.scenario = "small";
+  const sim::Simulator simulator(cfg);
+  std::mt19937_64 rng(15);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::vector<size_t> kept;
+  for (size_t f = 0; f < simulator.num_frames(); ++f) {
+    if (f < 3 || uniform(rng) >= 0.3) kept.push_back(f);  // the first frames start the motion model
+  }
+  std::vector<PointCloud> scans(kept.size());
+  tbb::parallel_for(size_t(0), kept.size(), [&](size_t i) { scans[i] = simulator.scan(kept[i]); });
+
+  MappingPipeline pipeline{MappingConfig{}};
+  std::vector<Eigen::Isometry3d> odom;
+  size_t gaps = 0;
+  for (size_t i = 0; i < kept.size(); ++i) {
+    const double stamp = 0.1 * kept[i] + (uniform(rng) - 0.5) * 0.02;
+    odom.push_back(pipeline.add_scan(std::move(scans[i]), stamp).T_odom);
+    if (i > 0 && kept[i] - kept[i - 1] > 1) ++gaps;
+  }
+  ASSERT_GT(gaps, 20u);  // the test exercises irregular intervals
+  const auto& truth = simulator.poses();
+  double worst = 0.0;
+  for (size_t i = 1; i < kept.size(); ++i) {
+    const Eigen::Isometry3d est = odom[i - 1].inverse() * odom[i];
+    const Eigen::Isometry3d ref = truth[kept[i - 1]].inverse() * truth[kept[i]];
+    const double e = test::translation_error(est, ref);
+    worst = std::max(worst, e);
+    EXPECT_LT(e, 0.2) << "frames " << kept[i - 1] << " -> " << kept[i];
+  }
+  EXPECT_EQ(pipeline.stats().odometry_failures, 0u);
+  std::printf("worst frame-to-frame error %.3f m over %zu frames (%zu gaps)\n", worst, kept.size(), gaps);
+}
+
+// One ring of a spinning sensor, points in the order the sensor turns: counter-clockwise (azimuth
+// increasing) or clockwise from `start_deg`, a full turn less one step.
+PointCloud ring(double start_deg, bool clockwise, int steps) {
+  PointCloud c;
+  for (int k = 0; k < steps; ++k) {
+    const double a = (start_deg + (clockwise ? -1.0 : 1.0) * 360.0 * k / steps) * M_PI / 180.0;
+    c.points.emplace_back(10.0 * std::cos(a), 10.0 * std::sin(a), 0.5);
+  }
+  return c;
+}
+
+TEST(AzimuthTimes, MonotoneOverTheTurnAndWithinOnePeriod) {
+  for (const bool clockwise : {false, true}) {
+    for (const double start : {0.0, 180.0, -90.0}) {
+      PreprocessConfig config;
+      config.sweep_clockwise = clockwise;
+      config.sweep_start_deg = start;
+      config.sweep_period = 0.1;
+      PointCloud c = ring(start + (clockwise ? -0.01 : 0.01), clockwise, 3600);
+      times_from_azimuth(c, config);
+      ASSERT_EQ(c.times.size(), c.size());
+      EXPECT_LT(c.times.front(), 1e-5) << "start " << start << " clockwise " << clockwise;
+      EXPECT_GT(c.times.back(), 0.0999);
+      for (size_t i = 0; i < c.size(); ++i) {
+        EXPECT_GE(c.times[i], 0.f);
+        EXPECT_LT(c.times[i], 0.1f);
+        if (i > 0) EXPECT_GT(c.times[i], c.times[i - 1]) << "point " << i;
+      }
+      // Turning the other way, the same points run backwards in time (but the first).
+      config.sweep_clockwise = !clockwise;
+      times_from_azimuth(c, config);
+      for (size_t i = 2; i < c.size(); ++i) EXPECT_LT(c.times[i], c.times[i - 1]) << "point " << i;
+    }
+  }
+  // A point just before the start angle is at the end of the turn, not before its start.
+  PreprocessConfig config;
+  PointCloud c;
+  c.points.emplace_back(10.f, -1e-6f, 0.f);
+  times_from_azimuth(c, config);
+  EXPECT_GE(c.times[0], 0.f);
+  EXPECT_LT(c.times[0], 0.1f);
+}
+
+TEST(AzimuthTimes, SetOnlyWhenEnabledAndAbsent) {
+  MappingConfig config;
+  PointCloud c = ring(0.0, false, 3600);
+  EXPECT_FALSE(prepare_scan(c, 0.0, config, {}).cloud->has_times());
+  config.preprocess.deskew_from_azimuth = true;
+  EXPECT_TRUE(prepare_scan(c, 0.0, config, {}).cloud->has_times());
+}
+
+// The map command's flags reach the configuration it runs with (config.yaml).
+TEST(AzimuthTimes, MapFlagsSetTheConfigKeys) {
+  test::TempDir tmp;
+  const std::string cli = GCMAP_CLI;
+  ASSERT_EQ(std::system((cli + " simulate -o " + (tmp / "seq") + " --scenario small --frames 3 >/dev/null 2>&1").c_str()), 0);
+  ASSERT_EQ(std::system((cli + " map " + (tmp / "seq") + " -o " + (tmp / "out") +
+                         " --no-deskew --deskew-from-azimuth --no-render --quiet >/dev/null 2>&1")
+                            .c_str()),
+            0);
+  const MappingConfig c = MappingConfig::load(tmp / "out/config.yaml");
+  EXPECT_FALSE(c.preprocess.deskew);
+  EXPECT_TRUE(c.preprocess.deskew_from_azimuth);
+}
+
+}  // namespace
+}  // namespace gcmap
