@@ -156,7 +156,8 @@ CloudTopicInfo describe_cloud_topic(BagReader& bag, const std::string& topic) {
   const BagTopic& t = bag.topic(topic);
   CloudTopicInfo info;
   BagMessage msg;
-  if (!bag.read(topic)->next(msg)) return info;
+  const auto cursor = bag.read(topic);  // msg.data views the cursor's buffer: keep it alive
+  if (!cursor->next(msg)) return info;
   const std::string where = bag.path() + ": first message of " + topic;
   if (is_livox_type(t.type)) {
     const LivoxMsg m = decode_livox(msg.data, t.encoding, where);
