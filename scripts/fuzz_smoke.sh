@@ -8,7 +8,8 @@ cd "$(dirname "$0")/.."
 seconds=${1:-30}
 shift || true
 launcher=()
-command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+# ccache, where installed, with paths relative to the checkout so another clone hits the same cache.
+command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache) && export CCACHE_BASEDIR="$PWD"
 cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ -DGCMAP_FUZZ=ON \
   -DGCMAP_CUDA=OFF -DGCMAP_BUILD_TESTS=OFF -DGCMAP_BUILD_BENCH=OFF "${launcher[@]}" >/dev/null
 cmake --build build-fuzz -j "$(nproc)" --target gcmap_fuzz

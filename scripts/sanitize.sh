@@ -19,7 +19,8 @@ else
   export LSAN_OPTIONS=suppressions=$PWD/scripts/lsan.supp
 fi
 launcher=()
-command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+# ccache, where installed, with paths relative to the checkout so another clone hits the same cache.
+command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache) && export CCACHE_BASEDIR="$PWD"
 cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g1" \
   -DCMAKE_CXX_FLAGS="$flags -fno-omit-frame-pointer" -DCMAKE_EXE_LINKER_FLAGS="$flags" \
   -DGCMAP_CUDA=OFF -DGCMAP_BUILD_BENCH=OFF -DGCMAP_PYTHON=OFF "${launcher[@]}" >/dev/null
