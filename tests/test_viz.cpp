@@ -69,7 +69,7 @@ struct SyntheticRun {
     }
     for (size_t i = 0; i < kinds.size(); ++i) {
       Json j = Json::object();
-      j["type"] = factor_kind_name(kinds[i]);
+      j["type"] = to_string(kinds[i]);
       j["source"] = kinds[i] == FactorKind::loop ? 2 : static_cast<int>(i % 2) + 1;
       j["target"] = kinds[i] == FactorKind::loop ? 0 : static_cast<int>(i % 2);
       if (kinds[i] != FactorKind::matching_cost) j["final_weight"] = 0.5;

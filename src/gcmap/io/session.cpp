@@ -159,7 +159,7 @@ std::string manifest_yaml(const MappingPipeline& p) {
 }
 
 FactorKind parse_factor_kind(const std::string& text, const std::string& path) {
-  for (FactorKind k : {FactorKind::matching_cost, FactorKind::odometry, FactorKind::se3, FactorKind::loop})
+  for (FactorKind k : kFactorKinds)
     if (text == to_string(k)) return k;
   throw Error(path + ": unknown factor kind '" + text + "'");
 }

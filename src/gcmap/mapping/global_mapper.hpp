@@ -8,15 +8,11 @@
 #include "gcmap/core/timer.hpp"
 #include "gcmap/graph/levenberg_marquardt.hpp"
 #include "gcmap/mapping/config.hpp"
+#include "gcmap/mapping/factor_kind.hpp"
 #include "gcmap/mapping/loop_detector.hpp"
 #include "gcmap/mapping/submap.hpp"
 
 namespace gcmap {
-
-// matching_cost: VGICP between two submaps (the paper); odometry: a relative pose where a submap
-// would otherwise be disconnected; se3: the ablation's scan-matching relative pose; loop: explicit.
-enum class FactorKind { matching_cost, odometry, se3, loop };
-const char* to_string(FactorKind kind);
 
 // One factor of the global graph and what is known of it.
 struct GlobalFactor {

@@ -84,21 +84,11 @@ FactorKind factor_kind(const YAML::Node& node, const std::string& where) {
   const YAML::Node t = member(node, "type", where);
   const std::string name = t.IsScalar() ? t.Scalar() : "";
   for (FactorKind k : kFactorKinds)
-    if (name == factor_kind_name(k)) return k;
+    if (name == to_string(k)) return k;
   throw Error(where + ": unknown factor type \"" + name + "\" (matching_cost, odometry, se3 or loop)");
 }
 
 }  // namespace
-
-const char* factor_kind_name(FactorKind kind) {
-  switch (kind) {
-    case FactorKind::matching_cost: return "matching_cost";
-    case FactorKind::odometry: return "odometry";
-    case FactorKind::se3: return "se3";
-    case FactorKind::loop: return "loop";
-  }
-  return "?";
-}
 
 bool RunGraph::has(FactorKind kind) const { return count(kind) > 0; }
 

@@ -7,13 +7,9 @@
 
 #include "gcmap/core/point_cloud.hpp"
 #include "gcmap/eval/trajectory_metrics.hpp"
+#include "gcmap/mapping/factor_kind.hpp"
 
 namespace gcmap::viz {
-
-enum class FactorKind { matching_cost, odometry, se3, loop };
-inline constexpr FactorKind kFactorKinds[] = {FactorKind::matching_cost, FactorKind::odometry, FactorKind::se3,
-                                              FactorKind::loop};
-const char* factor_kind_name(FactorKind kind);  // as graph.json spells it
 
 struct GraphNode {
   int id = 0;
