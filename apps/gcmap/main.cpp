@@ -3,6 +3,7 @@
 #include <tbb/global_control.h>
 
 #include <cmath>
+#include <csignal>
 #include <iostream>
 #include <sstream>
 
@@ -34,6 +35,8 @@ std::shared_ptr<void> limit_threads(int threads) {
 
 int main(int argc, char** argv) {
   gcmap::keep_large_buffers_in_heap();
+  // Past a file-size limit, fail the write (and keep the previous outputs) instead of dying.
+  std::signal(SIGXFSZ, SIG_IGN);
   auto logger = spdlog::stderr_color_mt("gcmap");
   logger->set_pattern("[%l] %v");
   spdlog::set_default_logger(logger);
