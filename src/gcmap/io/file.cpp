@@ -17,12 +17,21 @@ std::string read_file(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw Error(path + ": no such file");
   if (std::filesystem::is_directory(path, ec)) throw Error(path + ": is a directory, expected a file");
-  std::ifstream in(path, std::ios::binary);
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
   if (!in) throw Error(path + ": cannot open (" + std::strerror(errno) + ")");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) throw Error(path + ": read error");
-  return std::move(ss).str();
+  // One read into a buffer of the file's size; files without one (pipes, /proc) through the stream.
+  const std::streamoff size = in.tellg();
+  in.seekg(0);
+  if (size <= 0) {
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    if (in.bad()) throw Error(path + ": read error");
+    return std::move(ss).str();
+  }
+  std::string bytes(static_cast<size_t>(size), '\0');
+  in.read(bytes.data(), size);
+  if (in.gcount() != size) throw Error(path + ": read error (file shrank while read?)");
+  return bytes;
 }
 
 void write_file_atomic(const std::string& path, const std::function<void(std::ostream&)>& write) {
