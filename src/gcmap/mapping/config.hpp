@@ -123,7 +123,7 @@ struct MergeConfig {
   // Looser than loop.max_descriptor_distance: another session passes a place in another lane or
   // direction; the GICP verification (loop.*) rejects the wrong ones.
   double max_descriptor_distance = 0.3;
-  int max_verifications = 10;  // GICP checks of the best ScanContext candidates per session to place
+  int max_verifications = 10;  // GICP checks (distinct submap pairs, best ScanContext candidates first) per session to place
   int max_iterations = 50;     // joint LM over all sessions
 };
 

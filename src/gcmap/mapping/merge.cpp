@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <optional>
+#include <set>
+#include <tuple>
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/timer.hpp"
@@ -55,9 +57,12 @@ std::optional<std::pair<SessionPlacement, Eigen::Isometry3d>> find_placement(con
                           results[q].place});
   }
   std::stable_sort(candidates.begin(), candidates.end(), [](const Candidate& x, const Candidate& y) { return x.distance < y.distance; });
-  candidates.resize(std::min<size_t>(candidates.size(), config.merge.max_verifications));
+  // Neighbouring keyframes propose the same submap pair again: each pair is verified once.
+  std::set<std::tuple<int, int, int>> tried;
   for (const Candidate& c : candidates) {
     const Place& p = where[c.place];
+    if (!tried.insert({c.submap, p.session, p.submap}).second) continue;
+    if (tried.size() > static_cast<size_t>(config.merge.max_verifications)) break;
     const Submap& source = in[b].submaps[c.submap];
     const Submap& target = in[p.session].submaps[p.submap];
     const LoopVerification v =
