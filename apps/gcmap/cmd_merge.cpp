@@ -73,6 +73,20 @@ Json merge_report(const MergeOptions& o, const MergeResult& r) {
     sessions.push_back(s);
   }
   j["sessions"] = sessions;
+  Json checks = Json::array();
+  for (const SessionPlacement& c : r.checks) {
+    Json x = Json::object();
+    x["session"] = c.session;
+    x["submap"] = c.source;
+    x["anchor"] = c.anchor;
+    x["anchor_submap"] = c.target;
+    x["descriptor_distance"] = c.descriptor_distance;
+    x["inlier_fraction"] = c.inlier_fraction;
+    x["inlier_rmse"] = c.inlier_rmse;
+    x["accepted"] = c.accepted;
+    checks.push_back(x);
+  }
+  j["verifications"] = checks;
   j["submaps"] = r.T_merged_submap.size();
   j["factors"] = r.factors.size();
   j["cross_session_factors"] = r.cross_factors;

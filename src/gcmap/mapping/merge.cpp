@@ -30,7 +30,8 @@ struct Candidate {
 std::optional<std::pair<SessionPlacement, Eigen::Isometry3d>> find_placement(const std::vector<MergeInput>& in,
                                                                               const std::vector<Eigen::Isometry3d>& T_ref_session,
                                                                               const std::vector<bool>& connected, int b,
-                                                                              const MappingConfig& config) {
+                                                                              const MappingConfig& config,
+                                                                              std::vector<SessionPlacement>& checks) {
   ScanContextDatabase places;
   std::vector<Place> where;
   for (size_t a = 0; a < in.size(); ++a) {
@@ -67,11 +68,11 @@ std::optional<std::pair<SessionPlacement, Eigen::Isometry3d>> find_placement(con
     const Submap& target = in[p.session].submaps[p.submap];
     const LoopVerification v =
         verify_loop(*source.cloud, *target.cloud, place_match_guess(source, c.keyframe, target, p.keyframe, c.yaw), config.loop);
+    checks.push_back({b, p.session, c.submap, p.submap, v.accepted, c.distance, v.inlier_fraction, v.inlier_rmse, v.T_target_source});
     if (!v.accepted) continue;
     const Eigen::Isometry3d T_ref_b = T_ref_session[p.session] * in[p.session].T_world_submap[p.submap] * v.T_target_source *
                                       in[b].T_world_submap[c.submap].inverse();
-    return std::pair{SessionPlacement{p.session, c.submap, p.submap, c.distance, v.inlier_fraction, v.inlier_rmse, v.T_target_source},
-                     T_ref_b};
+    return std::pair{checks.back(), T_ref_b};
   }
   return std::nullopt;
 }
@@ -87,7 +88,7 @@ std::vector<Eigen::Isometry3d> place_sessions(const std::vector<MergeInput>& in,
     progress = false;
     for (size_t b = 1; b < in.size(); ++b) {
       if (r.connected[b]) continue;
-      if (auto found = find_placement(in, T_ref_session, r.connected, static_cast<int>(b), config)) {
+      if (auto found = find_placement(in, T_ref_session, r.connected, static_cast<int>(b), config, r.checks)) {
         r.placements[b] = found->first;
         T_ref_session[b] = found->second;
         r.connected[b] = true;

@@ -24,9 +24,11 @@ struct MergeInput {
   std::vector<Eigen::Isometry3d> trajectory;      // per frame, in its frame
 };
 
-// How a session was placed: its submap `source` matched submap `target` of session `anchor`.
+// A verified place between sessions: submap `source` of `session` against submap `target` of
+// session `anchor`.
 struct SessionPlacement {
-  int anchor = -1, source = -1, target = -1;
+  int session = -1, anchor = -1, source = -1, target = -1;
+  bool accepted = false;
   double descriptor_distance = 0.0, inlier_fraction = 0.0, inlier_rmse = 0.0;
   Eigen::Isometry3d T_target_source = Eigen::Isometry3d::Identity();  // verified by GICP
 };
@@ -34,6 +36,7 @@ struct SessionPlacement {
 struct MergeResult {
   std::vector<bool> connected;               // per session: placed relative to the first
   std::vector<SessionPlacement> placements;  // per session (the first and unconnected ones: anchor -1)
+  std::vector<SessionPlacement> checks;      // every GICP verification, accepted or not (why one is unconnected)
   // Per connected session, the index of its first submap among the merged submaps (connected
   // sessions' submaps in input order); -1 when unconnected.
   std::vector<int> first_submap;
