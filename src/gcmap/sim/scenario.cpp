@@ -8,10 +8,11 @@
 namespace gcmap::sim {
 
 namespace {
-void add_waypoints(Scenario& s, std::initializer_list<std::pair<float, float>> pts) {
+using Waypoints = std::initializer_list<std::pair<float, float>>;
+
+void add_waypoints(Scenario& s, Waypoints pts) {
   for (auto [x, y] : pts) s.waypoints.emplace_back(x, y);
 }
-using Waypoints = std::initializer_list<std::pair<float, float>>;
 
 // Routes 1, 2, ... of the scenarios that have them, in blocks on the grid of route 0. Each starts
 // elsewhere and drives some of route 0's streets in the same direction (where ScanContext
@@ -100,7 +101,6 @@ Scenario make_scenario(const std::string& name, int frames, int route) {
     throw Error("--route: the '" + name + "' scenario has routes 0 to " + std::to_string(num_routes(name) - 1) + ", got " +
                 std::to_string(route));
   s.world_waypoints = s.waypoints;
-  s.route = route;
   if (route > 0) s.waypoints = other_route(name, route, s.waypoints);
   if (frames < 0) throw Error("--frames: must be >= 0");
   if (frames > 0) s.frames = frames;

@@ -17,7 +17,6 @@ struct Scenario {
   std::vector<Eigen::Vector2f> waypoints;  // in blocks, along streets: the route driven
   // Route 0's waypoints: the street grid (world, traffic) that every route of the scenario shares.
   std::vector<Eigen::Vector2f> world_waypoints;
-  int route = 0;
   int frames = 0;  // constant speed: frames spread evenly over the route; else 0 = the whole drive
   bool feature_poor = false;
   bool realistic = false;  // realism on by default, traffic, sidewalks, a speed profile
