@@ -1,5 +1,7 @@
 // Merging sessions of different routes through one simulated world (ground truth: poses_world).
 #include <algorithm>
+#include <array>
+#include <optional>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -43,14 +45,15 @@ MergeInput input(const MappedDrive& d, const std::string& name) {
 
 class MergeOfSmallRoutes : public ::testing::Test {
  protected:
-  // Routes 0, 1 (the same loop from 20 m further on) and 2 (the next block, from a corner of the
-  // first, one street shared in the opposite direction) of one world, and route 0 of another
-  // world (seed 2: other houses on the same streets).
-  static void SetUpTestSuite() {
-    drives = new std::vector<MappedDrive>{map_route(0, 1), map_route(1, 1), map_route(2, 1), map_route(0, 2, 20)};
+  // Routes 0, 1 (the same loop from 20 m further on) and 2 (the next block, from 30 m into route 0,
+  // one street shared in the opposite direction) of one world, and route 0 of another world
+  // (seed 2: other houses on the same streets); each mapped when a test first needs it.
+  static const MappedDrive& drive(int k) {
+    static std::vector<std::optional<MappedDrive>> drives(4);
+    static constexpr std::array<std::pair<int, uint64_t>, 4> kRoutes{{{0, 1}, {1, 1}, {2, 1}, {0, 2}}};
+    if (!drives[k]) drives[k] = map_route(kRoutes[k].first, kRoutes[k].second, k == 3 ? 20 : 45);
+    return *drives[k];
   }
-  static void TearDownTestSuite() { delete drives; }
-  static const MappedDrive& drive(int k) { return (*drives)[k]; }
   // Frame f of drive k in the frame of drive 0's first pose.
   static Eigen::Isometry3d truth(int k, size_t f) { return drive(0).poses_world[0].inverse() * drive(k).poses_world[f]; }
   // Largest error of drive k's merged trajectory against ground truth beyond the error its own
@@ -65,9 +68,7 @@ class MergeOfSmallRoutes : public ::testing::Test {
     }
     return {t, a};
   }
-  static std::vector<MappedDrive>* drives;
 };
-std::vector<MappedDrive>* MergeOfSmallRoutes::drives = nullptr;
 
 TEST_F(MergeOfSmallRoutes, TwoRoutesAreJoinedAtTheirTrueRelativePose) {
   const MergeResult r = merge_sessions({input(drive(0), "A"), input(drive(1), "B")}, MappingConfig{});

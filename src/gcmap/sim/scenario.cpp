@@ -23,7 +23,9 @@ std::vector<Eigen::Vector2f> other_route(const std::string& name, int route, con
     for (auto [x, y] : pts) out.emplace_back(x, y);
   };
   if (name == "loop") {
-    out.assign(route0.rbegin(), route0.rend());  // the whole drive backwards, from its end
+    // From the first loop's far corner, the rest of route 0, then back along its first street.
+    out.assign(route0.begin() + 2, route0.end());
+    out.emplace_back(0.f, 0.f);
   } else if (name == "small" && route == 1) {
     from({{0.5f, 0}, {1, 0}, {1, 1}, {0, 1}, {0, 0}, {0.75f, 0}});  // the same loop, from 20 m further
   } else if (name == "small") {
