@@ -1,10 +1,10 @@
 // Merging sessions of different routes through one simulated world (ground truth: poses_world).
 #include <algorithm>
 #include <array>
-#include <optional>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/io/file.hpp"
