@@ -55,6 +55,7 @@ int main(int argc, char** argv) {
   gcmap::cli::add_config(app, run);
   gcmap::cli::add_session(app, run);
   gcmap::cli::add_localize(app, run);
+  gcmap::cli::add_merge(app, run);
   gcmap::cli::add_render(app, run);
   gcmap::cli::add_plot(app, run);
   gcmap::cli::add_view(app, run);

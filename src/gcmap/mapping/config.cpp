@@ -101,6 +101,9 @@ void visit(Config& c, Visitor&& v) {
   v("localize", "submap_radius", c.localize.submap_radius);
   v("localize", "min_inlier_fraction", c.localize.min_inlier_fraction);
   v("localize", "relocalize_every", c.localize.relocalize_every);
+  v("merge", "max_descriptor_distance", c.merge.max_descriptor_distance);
+  v("merge", "max_verifications", c.merge.max_verifications);
+  v("merge", "max_iterations", c.merge.max_iterations);
   v("output", "map_resolution", c.output.map_resolution);
   v("output", "pcd", c.output.pcd);
 }
@@ -242,6 +245,8 @@ void MappingConfig::validate() const {
   need(localize.submap_radius > 0, "localize.submap_radius must be positive");
   need(localize.min_inlier_fraction > 0 && localize.min_inlier_fraction <= 1, "localize.min_inlier_fraction must be in (0, 1]");
   need(localize.relocalize_every >= 1, "localize.relocalize_every must be >= 1");
+  need(merge.max_descriptor_distance > 0 && merge.max_descriptor_distance <= 1, "merge.max_descriptor_distance must be in (0, 1]");
+  need(merge.max_verifications >= 1 && merge.max_iterations >= 1, "merge.max_verifications and merge.max_iterations must be >= 1");
   need(output.map_resolution > 0, "output.map_resolution must be positive");
 }
 

@@ -125,6 +125,15 @@ struct LocalizationConfig {
   int relocalize_every = 5;  // frames between global initialization attempts while lost
 };
 
+// Merging sessions (gcmap merge): cross-session places are found and verified with loop.*.
+struct MergeConfig {
+  // Looser than loop.max_descriptor_distance: another session passes a place in another lane or
+  // direction; the GICP verification (loop.*) rejects the wrong ones.
+  double max_descriptor_distance = 0.3;
+  int max_verifications = 10;  // GICP checks (distinct submap pairs, best ScanContext candidates first) per session to place
+  int max_iterations = 50;     // joint LM over all sessions
+};
+
 struct OutputConfig {
   double map_resolution = 0.1;
   bool pcd = false;
@@ -137,6 +146,7 @@ struct MappingConfig {
   GlobalMappingConfig global;
   LoopConfig loop;
   LocalizationConfig localize;
+  MergeConfig merge;
   OutputConfig output;
 
   // Throws Error("PATH: ...") naming the offending key.

@@ -28,6 +28,12 @@ LMConfig lm_config(int iterations, double relative_error_tol = LMConfig{}.relati
 }
 }  // namespace
 
+Matrix6d odometry_factor_information() {
+  Matrix6d info = Matrix6d::Identity();
+  info.diagonal() << 1e4, 1e4, 1e4, 1e3, 1e3, 1e3;
+  return info;
+}
+
 GlobalMapper::GlobalMapper(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend)
     : config_(config),
       backend_(std::move(backend)),
@@ -79,10 +85,8 @@ void GlobalMapper::insert(Submap s, LoopDetector* loops) {
   if (connect_overlapping(id, first) == 0) {
     // Only where the submap would otherwise be disconnected.
     const Submap& prev = submaps_[id - 1];
-    Matrix6d info = Matrix6d::Identity();
-    info.diagonal() << 1e4, 1e4, 1e4, 1e3, 1e3, 1e3;
     add_factor({FactorKind::odometry, id, id - 1, 0.0,
-                std::make_shared<RelativePoseFactor>(id - 1, id, prev.T_odom.inverse() * cur.T_odom, info)});
+                std::make_shared<RelativePoseFactor>(id - 1, id, prev.T_odom.inverse() * cur.T_odom, odometry_factor_information())});
   }
   stats_.factors.add(w.lap_ms());
   std::optional<LoopRecord> loop;

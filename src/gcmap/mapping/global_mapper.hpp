@@ -24,6 +24,9 @@ struct GlobalFactor {
   std::shared_ptr<Factor> factor;
 };
 
+// Information of a relative-pose factor that keeps a submap connected where nothing overlaps it.
+Matrix6d odometry_factor_information();
+
 // A factor's state at the current estimate.
 struct FactorEvaluation {
   double error = 0.0;
