@@ -1,4 +1,6 @@
 // Re-linearize only what moved (graph/lazy_backend.hpp) against re-linearizing every factor.
+#include <cstdio>
+
 #include "gcmap/core/preprocess.hpp"
 #include "gcmap/graph/lazy_backend.hpp"
 #include "gcmap/graph/levenberg_marquardt.hpp"
@@ -69,14 +71,18 @@ TEST(LazyBackend, DefaultThresholdStaysCloseAndLinearizesLess) {
   EXPECT_GT(lazy->reused(), 0u);
   EXPECT_LT(lazy->linearized(), counting->linearized());
   // Stated tolerance of the default on this scene (0.5 m voxels): 2 cm, 0.02 deg from always
-  // re-linearizing. Measured here: always sits 13.7 mm from the truth in every frame, the lazy
-  // result 0.7 mm, the two 13.0 mm / 0.001 deg apart: the same minimum within the association's noise.
+  // re-linearizing, both within 2 cm of the truth (always itself sits about 1.4 cm from it here).
+  double worst_to_always = 0.0, worst_to_truth = 0.0;
   for (int k = 0; k < 8; ++k) {
     EXPECT_LT(test::translation_error(moved.at(k), s.truth[k]), 0.02) << k;
     EXPECT_LT(test::translation_error(always.at(k), s.truth[k]), 0.02) << k;
     EXPECT_LT(test::translation_error(moved.at(k), always.at(k)), 0.02) << k;
     EXPECT_LT(test::rotation_error_deg(moved.at(k), always.at(k)), 0.02) << k;
+    worst_to_always = std::max(worst_to_always, test::translation_error(moved.at(k), always.at(k)));
+    worst_to_truth = std::max(worst_to_truth, test::translation_error(moved.at(k), s.truth[k]));
   }
+  std::printf("lazy vs always: %.4f m, lazy vs truth: %.4f m; %zu linearizations (always: %zu), %zu reused\n",
+              worst_to_always, worst_to_truth, lazy->linearized(), counting->linearized(), lazy->reused());
 }
 
 TEST(LazyBackend, KeptModelIsTheLinearizationCarriedToTheNewPoses) {

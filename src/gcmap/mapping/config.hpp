@@ -83,7 +83,9 @@ struct GlobalMappingConfig {
   double relative_error_tol = 1e-4;  // per insertion; the final optimization runs to 1e-6
   int final_iterations = 50;
   Relinearize relinearize = Relinearize::moved;
-  double relinearize_threshold = 0.1;  // norm of a factor's relative-pose change [rad, m] since its linearization (GLIM: 0.1)
+  // Norm of a factor's relative-pose change [rad, m] since its linearization. GLIM's iSAM2 uses
+  // 0.1; on city (1500 frames) 0.1 / 0.05 / 0.02 gave t_rel 7.3 / 3.9 / 1.2 % above always.
+  double relinearize_threshold = 0.02;
   // Points of a submap used as the source of its matching-cost factors and overlaps (an even
   // subsample; target voxel maps keep every point). The global graph's cost is linear in it.
   int factor_source_points = 20000;
