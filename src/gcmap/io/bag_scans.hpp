@@ -85,6 +85,8 @@ class BagScanRecords : public ScanSource {
   BagScanRecords(const std::string& path, const BagScanOptions& options, size_t skip = 0, size_t limit = 0);
   std::optional<ScanRecord> next() override;
   size_t size_hint() const override;
+  // The bag reader's warnings, and how many messages could not be decoded.
+  std::vector<std::string> warnings() const override;
   const BagScanSource& bag() const { return source_; }
 
  private:
