@@ -222,6 +222,12 @@ TEST_F(BagSim, TruncatedBagMapsWhatWasComplete) {
   }
 }
 
+TEST_F(BagSim, MappingTheOutputFolderNamesTheBagInIt) {
+  const CliRun r = run_map(out("mcap-velodyne"), "map-folder");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("no .bin, .pcd or .ply scans (bags: " + bag(find("mcap-velodyne")) + ")"), std::string::npos) << r.err;
+}
+
 TEST(BagSimCli, FlagsAreChecked) {
   TempDir dir;
   for (const char* bad : {"--format ros", "--format bag --time-field sick", "--format mcap --compression bz2",
