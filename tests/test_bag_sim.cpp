@@ -231,7 +231,7 @@ TEST_F(BagSim, MappingTheOutputFolderNamesTheBagInIt) {
 TEST(BagSimCli, FlagsAreChecked) {
   TempDir dir;
   for (const char* bad : {"--format ros", "--format bag --time-field sick", "--format mcap --compression bz2",
-                          "--format db3 --compression zstd"}) {
+                          "--format db3 --compression zstd", "--format kitti --time-field hesai"}) {
     const CliRun r = run_gcmap("simulate -o " + (dir / "x") + " --scenario small --frames 2 " + bad);
     EXPECT_EQ(r.code, 2) << bad;
     const std::string flag = std::string(bad).substr(std::string(bad).rfind("--"));

@@ -24,12 +24,13 @@ void add_simulate(CLI::App& app, Runner& run) {
                   "kitti, mcap, db3 or bag (ROS 1): a bag holds /points (sensor_msgs/PointCloud2, header stamps as in "
                   "times.txt)")
       ->capture_default_str();
-  cmd->add_option("--time-field", *time_field,
+  auto* time_opt = cmd->add_option("--time-field", *time_field,
                   "Bags, with motion distortion: the per-point time as ouster (t, uint32 ns), velodyne (time, float32 s), "
                   "hesai (timestamp, float64 absolute s) or livox (offset_time, uint32 ns)")
       ->capture_default_str();
-  cmd->add_option("--compression", *compression, "Bag chunks: none; mcap: zstd or lz4; bag: bz2 or lz4")
-      ->capture_default_str();
+  auto* compression_opt =
+      cmd->add_option("--compression", *compression, "Bag chunks: none; mcap: zstd or lz4; bag: bz2 or lz4")
+          ->capture_default_str();
   cmd->add_option("--scenario", opt->scenario,
                   "loop, small, corridor (ideal by default), city, highway, forest (realistic by default)")
       ->capture_default_str();
@@ -51,12 +52,15 @@ void add_simulate(CLI::App& app, Runner& run) {
       if (!realism->empty()) opt->realism = sim::parse_realism(*realism);
       sim::OutputOptions output;
       output.bag = sim::parse_output_format(*format, "--format");
+      if (!output.bag && (time_opt->count() || compression_opt->count()))
+        throw Error("--time-field and --compression apply to bags (--format mcap, db3 or bag), not to kitti");
       output.time = sim::parse_time_field(*time_field, "--time-field");
       output.compression = sim::parse_compression(*compression, output.bag, "--compression");
       Stopwatch w;
       const size_t points = sim::write_simulation(*out, *opt, output, false);
       const std::string bag = output.bag ? ",\"bag\":\"" + sim::simulated_bag_path(*out, *output.bag) + "\"" : "";
-      std::cout << "{\"output\":\"" << *out << "\"" << bag << ",\"points\":" << points << ",\"seconds\":" << w.ms() / 1000.0 << "}\n";
+      std::cout << "{\"output\":\"" << *out << "\"" << bag << ",\"points\":" << points
+                << ",\"seconds\":" << w.ms() / 1000.0 << "}\n";
       return 0;
     };
   });

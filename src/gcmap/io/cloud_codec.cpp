@@ -68,7 +68,8 @@ TimeSpec find_time(const PointCloud2Msg& m, const char* first, const std::string
   } else if ((s.a = find_field(m, "timestamp", where))) {
     const double v = first ? s.a(first) : 0;
     s.scale = std::abs(v) > 1e15 ? 1e-9 : 1;
-    s.kind = std::abs(v * s.scale - ns_to_s(m.stamp_ns)) < std::abs(v * s.scale) ? TimeKind::absolute : TimeKind::relative;
+    const bool near_header = std::abs(v * s.scale - ns_to_s(m.stamp_ns)) < std::abs(v * s.scale);
+    s.kind = near_header ? TimeKind::absolute : TimeKind::relative;
   } else {
     for (const char* name : {"t", "time", "offset_time"}) {
       if (!(s.a = find_field(m, name, where))) continue;

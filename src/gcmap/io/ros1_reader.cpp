@@ -236,7 +236,8 @@ bool Ros1Reader::scan_linear(uint64_t pos) {
     try {
       len = read_record(pos, buf);
     } catch (const Error&) {
-      warn(path_ + ": truncated in the record at offset " + std::to_string(pos) + " (no valid index): read what precedes it");
+      warn(path_ + ": truncated in the record at offset " + std::to_string(pos) +
+           " (no valid index): read what precedes it");
       return true;
     }
     ByteReader r(buf, where(pos));

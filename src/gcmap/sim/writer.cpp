@@ -208,8 +208,9 @@ size_t write_simulation(const std::string& dir_name, const SimulationConfig& con
   sink.close();
   write_metadata(dir, sim, config, output, total);
   if (!quiet) {
-    const std::string scans = output.bag ? fs::path(simulated_bag_path(dir_name, *output.bag)).filename().string() + " (/points)"
-                                         : std::string("velodyne/") + (sim.realism().motion_distortion ? ", point_times/" : "");
+    const std::string scans =
+        output.bag ? fs::path(simulated_bag_path(dir_name, *output.bag)).filename().string() + " (/points)"
+                   : std::string("velodyne/") + (sim.realism().motion_distortion ? ", point_times/" : "");
     spdlog::info("wrote {} scans ({:.0f} points each on average) of the '{}' scenario to {}: {}{}, poses.txt, "
                  "times.txt, scenario.json", n, static_cast<double>(total) / n, sim.scenario().name, dir_name, scans,
                  sim.realism().labels ? ", labels/" : "");
