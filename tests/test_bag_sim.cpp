@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <map>
 
 #include "bag_test_util.hpp"
 #include "gcmap/io/sequence.hpp"
@@ -107,6 +108,10 @@ TEST_F(BagSim, BagsReadBackAsTheKittiLayout) {
     SCOPED_TRACE(c.name);
     EXPECT_EQ(slurp(out(c.name) + "/times.txt"), slurp(out("kitti") + "/times.txt"));
     EXPECT_EQ(slurp(out(c.name) + "/poses.txt"), slurp(out("kitti") + "/poses.txt"));
+    const std::string field = describe_cloud_topic(*open_bag(bag(c)), "/points").time_field;
+    const std::map<std::string, std::string> names = {
+        {"ouster", "t "}, {"velodyne", "time "}, {"hesai", "timestamp "}, {"livox", "offset_time "}};
+    EXPECT_EQ(field.rfind(names.at(c.time_field), 0), 0u) << field;  // the vendor's field
     BagScanRecords source(bag(c), {});
     const auto got = read_all(source);
     ASSERT_EQ(got.size(), kFrames);
