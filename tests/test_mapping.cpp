@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <fstream>
+#include <map>
 #include <regex>
 
 #include "gcmap/core/error.hpp"
@@ -127,6 +128,54 @@ TEST_F(SmallScenario, InterruptionWritesPartialOutputs) {
   EXPECT_LT(frames, read_trajectory(*dir / "sim/poses.txt").size());
   EXPECT_EQ(read_trajectory(out + "/odometry.kitti").size(), frames);
   EXPECT_GT(read_point_cloud(out + "/map.ply").size(), 0u);
+}
+
+// Every file below `dir` (relative path -> bytes), but the timings and peak memory of stats.json.
+std::map<std::string, std::string> output_files(const std::string& dir) {
+  std::map<std::string, std::string> files;
+  for (const auto& e : std::filesystem::recursive_directory_iterator(dir))
+    if (e.is_regular_file()) files[std::filesystem::relative(e.path(), dir).string()] = slurp(e.path());
+  return files;
+}
+
+TEST_F(SmallScenario, FullDiskLeavesThePreviousOutputsWhole) {
+  // A file-size limit on the child (RLIMIT_FSIZE through the shell's ulimit, in KiB) makes map.ply
+  // fail to write: exit 2 naming it, and the outputs of the run before stay as they were.
+  const std::string out = *dir / "full_disk";
+  const std::string args = "map " + (*dir / "sim") + " -o " + out + " --quiet --no-explicit-loops --no-render --device cpu";
+  std::string err;
+  ASSERT_EQ(run(args + " --max-frames 20", &err), 0) << err;
+  const auto before = output_files(out);
+  ASSERT_GT(before.at("map.ply").size(), 200u * 1024) << "the limit below must cut map.ply";
+  const std::string limited = "sh -c 'ulimit -f 200; exec " + std::string(GCMAP_CLI) + " " + args + " --max-frames 30' 2>";
+  const std::string log = *dir / "full_disk.err";
+  const int status = std::system((limited + log).c_str());
+  err = slurp(log);
+  EXPECT_EQ(WEXITSTATUS(status), 2) << err;
+  EXPECT_NE(err.find(out + "/map.ply: write failed"), std::string::npos) << err;
+  EXPECT_NE(err.find("previous outputs in " + out + " are unchanged"), std::string::npos) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  EXPECT_EQ(output_files(out), before) << "a file of the previous run changed, or a staging file was left";
+}
+
+TEST_F(SmallScenario, SameInputGivesByteIdenticalOutputs) {
+  // Same input, config and threads: every output byte-identical (stats.json holds timings and is
+  // left out). One and two threads: the same trajectory, since every parallel sum is reduced in a
+  // fixed order whatever the thread count.
+  const std::string args = "map " + (*dir / "sim") + " --quiet --max-frames 60 -o ";
+  std::string err;
+  for (const char* run_name : {"det_a", "det_b"})
+    ASSERT_EQ(run(args + (*dir / run_name) + " --threads 2", &err), 0) << err;
+  ASSERT_EQ(run(args + (*dir / "det_1") + " --threads 1", &err), 0) << err;
+  auto a = output_files(*dir / "det_a"), b = output_files(*dir / "det_b"), one = output_files(*dir / "det_1");
+  for (auto* files : {&a, &b, &one}) ASSERT_EQ(files->erase("stats.json"), 1u);
+  EXPECT_GE(a.size(), 10u);  // trajectories, map, graph, config, map.png, the session's files
+  EXPECT_EQ(a, b);
+  const Poses pa = read_trajectory(*dir / "det_a/trajectory.kitti").poses;
+  const Poses p1 = read_trajectory(*dir / "det_1/trajectory.kitti").poses;
+  ASSERT_EQ(pa.size(), p1.size());
+  for (size_t k = 0; k < pa.size(); ++k) EXPECT_LT(test::translation_error(pa[k], p1[k]), 1e-9) << "frame " << k;
+  EXPECT_EQ(a, one);
 }
 
 TEST(Mapping, BadInputGivesOneLineErrors) {

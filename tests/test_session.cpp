@@ -1,6 +1,12 @@
 // Sessions: a mapping run written to disk and read back.
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <thread>
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/io/file.hpp"
@@ -109,6 +115,49 @@ TEST_F(SessionRoundTrip, DamagedOrNewerSessionsAreRefusedWithTheFileNamed) {
   std::ofstream(cut + "/submaps.bin", std::ios::binary | std::ios::app).write("\xff\xff\xff\x7f", 4);
   EXPECT_THROW(read_session(cut), Error);
   EXPECT_THROW(read_session(*dir / "missing"), Error);
+}
+
+TEST_F(SessionRoundTrip, AWriterKilledAtAnyMomentLeavesAWholeSession) {
+  // A child rewrites the session (with every submap 1 m further in x) over and over until it is
+  // killed; whenever that happens, and while it writes, what is there reads as the old or the new.
+  const std::string target = *dir / "killed";
+  const Session before = read_session(*dir / "session");
+  write_session(target, before);
+  Session after = before;
+  for (Eigen::Isometry3d& T : after.T_world_submap) T.translation().x() += 1.0;
+  auto is_new = [&] {  // reads the session, which must be whole
+    const Session s = read_session(target);
+    EXPECT_EQ(s.submaps.size(), before.submaps.size());
+    EXPECT_EQ(s.trajectory.size(), before.trajectory.size());
+    const double dx = s.T_world_submap.back().translation().x() - before.T_world_submap.back().translation().x();
+    EXPECT_TRUE(std::abs(dx) < 1e-9 || std::abs(dx - 1.0) < 1e-9) << dx;
+    return std::abs(dx - 1.0) < 1e-9;
+  };
+  // Kills after 0-50 ms, then one once the new session has been seen (read while the child writes).
+  for (int delay_us : {0, 200, 700, 1500, 3000, 6000, 12000, 25000, 50000, -1}) {
+    const pid_t child = fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+      try {
+        for (;;) write_session(target, after);
+      } catch (...) {
+      }
+      _exit(3);
+    }
+    if (delay_us >= 0) std::this_thread::sleep_for(std::chrono::microseconds(delay_us));
+    for (int polls = 0; delay_us < 0 && !is_new() && polls < 6000; ++polls)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    ::kill(child, SIGKILL);
+    int status = 0;
+    ASSERT_EQ(waitpid(child, &status, 0), child);
+    ASSERT_TRUE(WIFSIGNALED(status)) << "the writer stopped by itself: exit " << WEXITSTATUS(status);
+    if (delay_us < 0) EXPECT_TRUE(is_new());
+    else is_new();
+  }
+  int interrupted = 0;  // kills inside a write leave its temporary folder behind
+  for (const auto& e : std::filesystem::directory_iterator(dir->path))
+    interrupted += e.path().filename().string().rfind("killed.tmp.", 0) == 0;
+  EXPECT_GT(interrupted, 0);
 }
 
 }  // namespace

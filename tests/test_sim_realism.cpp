@@ -95,7 +95,7 @@ TEST(SimRealism, SameSeedSameBytesForAnyThreadCount) {
       sim::write_simulation(c.path.string(), config(scenario, 2));
     }
     const auto fa = folder_bytes(a.path);
-    EXPECT_EQ(fa.size(), 2u * 3u + 3u) << scenario;  // velodyne, point_times, labels; poses, times, scenario.json
+    EXPECT_EQ(fa.size(), 2u * 3u + 4u) << scenario;  // velodyne, point_times, labels; poses, poses_world, times, scenario.json
     EXPECT_TRUE(fa == folder_bytes(b.path)) << scenario;
     EXPECT_TRUE(fa == folder_bytes(c.path)) << scenario;
   }

@@ -4,6 +4,7 @@
 
 #include "commands.hpp"
 #include "gcmap/core/error.hpp"
+#include "gcmap/core/memory.hpp"
 #include "gcmap/cuda/cuda_backend.hpp"
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/sequence.hpp"
@@ -81,11 +82,14 @@ int localize(const LocalizeOptions& o) {
   report["tracked_fraction"] = frames.empty() ? 0.0 : double(tracking) / frames.size();
   report["mean_map_overlap"] = frames.empty() ? 0.0 : overlap / frames.size();
   report["seconds"] = progress.seconds();
+  report["peak_rss_mb"] = peak_rss_bytes() / 1e6;
   report["per_frame"] = frames_json(frames, o.start);
   write_file_atomic((fs::path(o.output) / "localization.json").string(), [&](std::ostream& out) { out << report.dump() << "\n"; });
-  std::fprintf(stderr, "Localized %zu frames in %.1f s: %zu held by the map (%.0f %%), %.0f %% of points on average had no map correspondence.\n",
+  std::fprintf(stderr,
+               "Localized %zu frames in %.1f s: %zu held by the map (%.0f %%), %.0f %% of points on average had no map "
+               "correspondence; peak memory %.0f MB.\n",
                frames.size(), progress.seconds(), tracking, frames.empty() ? 0.0 : 100.0 * tracking / frames.size(),
-               frames.empty() ? 0.0 : 100.0 * (1.0 - overlap / frames.size()));
+               frames.empty() ? 0.0 : 100.0 * (1.0 - overlap / frames.size()), peak_rss_bytes() / 1e6);
   std::fprintf(stderr, "Wrote %s: trajectory.kitti and .tum (in the map's frame), localization.json (per-frame status).\n", o.output.c_str());
   return 0;
 }

@@ -168,6 +168,7 @@ void add_demo(CLI::App& app, Runner& run) {
       std::printf("%-28s %12zu\n", "submaps", r.submaps);
       std::printf("%-28s %12zu\n", "global factors", r.factors);
       std::printf("%-28s %12.2f\n", "frames per second", r.fps);
+      std::printf("%-28s %12.0f\n", "peak memory [MB]", peak_rss_bytes() / 1e6);
       if (!ov->no_render && !temporary) {
         viz::RunPicturesOptions po;
         po.view_html = po.plots = true;

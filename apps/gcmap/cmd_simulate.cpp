@@ -38,6 +38,10 @@ void add_simulate(CLI::App& app, Runner& run) {
                   "Number of frames (0 = the scenario's default; city, highway, forest: the first N frames of the drive)")
       ->capture_default_str();
   cmd->add_option("--seed", opt->seed, "World and noise seed")->capture_default_str();
+  cmd->add_option("--route", opt->route,
+                  "Which route through the seed's world: city and small have 0-2, loop 0-1 (noise and traffic differ per "
+                  "route; poses_world.txt gives the poses in the shared world frame)")
+      ->capture_default_str();
   cmd->add_option("--sensor", opt->sensor, "hdl64, vlp16, os1-64, os1-128 or avia (Livox-Avia-like rosette)")
       ->capture_default_str();
   cmd->add_option("--noise", opt->noise, "Range noise sigma in m")->capture_default_str();

@@ -23,6 +23,7 @@ void add_demo(CLI::App& app, Runner& run);
 void add_config(CLI::App& app, Runner& run);
 void add_session(CLI::App& app, Runner& run);
 void add_localize(CLI::App& app, Runner& run);
+void add_merge(CLI::App& app, Runner& run);
 void add_render(CLI::App& app, Runner& run);
 void add_plot(CLI::App& app, Runner& run);
 void add_view(CLI::App& app, Runner& run);

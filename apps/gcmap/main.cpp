@@ -3,6 +3,7 @@
 #include <tbb/global_control.h>
 
 #include <cmath>
+#include <csignal>
 #include <iostream>
 #include <sstream>
 
@@ -34,6 +35,8 @@ std::shared_ptr<void> limit_threads(int threads) {
 
 int main(int argc, char** argv) {
   gcmap::keep_large_buffers_in_heap();
+  // Past a file-size limit, fail the write (and keep the previous outputs) instead of dying.
+  std::signal(SIGXFSZ, SIG_IGN);
   auto logger = spdlog::stderr_color_mt("gcmap");
   logger->set_pattern("[%l] %v");
   spdlog::set_default_logger(logger);
@@ -52,6 +55,7 @@ int main(int argc, char** argv) {
   gcmap::cli::add_config(app, run);
   gcmap::cli::add_session(app, run);
   gcmap::cli::add_localize(app, run);
+  gcmap::cli::add_merge(app, run);
   gcmap::cli::add_render(app, run);
   gcmap::cli::add_plot(app, run);
   gcmap::cli::add_view(app, run);

@@ -96,32 +96,34 @@ Input open_input(const MapRunOptions& o) {
 
 void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapRunOptions& o, int signal,
                    const std::vector<std::string>& input_warnings) {
-  const fs::path out(o.output);
-  Trajectory traj;
-  traj.poses = pipeline.trajectory();
-  traj.stamps = pipeline.stamps();
-  traj.format = TrajectoryFormat::kitti;
-  write_trajectory((out / "trajectory.kitti").string(), traj);
-  traj.format = TrajectoryFormat::tum;
-  write_trajectory((out / "trajectory.tum").string(), traj);
-  Trajectory odom;
-  odom.poses = pipeline.odometry();
-  write_trajectory((out / "odometry.kitti").string(), odom);
-  const PointCloud map = pipeline.map(o.config.output.map_resolution);
-  write_ply((out / "map.ply").string(), map);
-  if (o.config.output.pcd) write_pcd((out / "map.pcd").string(), map);
-  const Json graph = graph_json(pipeline, frame_offset);
-  write_file_atomic((out / "graph.json").string(), [&](std::ostream& s) { s << graph.dump() << "\n"; });
-  Json stats = stats_json(pipeline);
-  stats["peak_rss_mb"] = peak_rss_bytes() / 1e6;
-  stats["partial"] = signal != 0;
-  if (signal) stats["interrupted_by"] = signal == SIGINT ? "SIGINT" : "SIGTERM";
-  Json warnings = Json::array();  // e.g. a truncated bag: mapped up to the damage
-  for (const std::string& w : input_warnings) warnings.push_back(w);
-  stats["input_warnings"] = warnings;
-  write_file_atomic((out / "stats.json").string(), [&](std::ostream& s) { s << stats.dump() << "\n"; });
-  write_file_atomic((out / "config.yaml").string(), [&](std::ostream& s) { s << o.config.to_yaml(); });
-  write_session((out / "session").string(), pipeline, traj.stamps);
+  write_folder_contents_atomic(o.output, [&](const std::string& staging) {
+    const fs::path out(staging);
+    Trajectory traj;
+    traj.poses = pipeline.trajectory();
+    traj.stamps = pipeline.stamps();
+    traj.format = TrajectoryFormat::kitti;
+    write_trajectory((out / "trajectory.kitti").string(), traj);
+    traj.format = TrajectoryFormat::tum;
+    write_trajectory((out / "trajectory.tum").string(), traj);
+    Trajectory odom;
+    odom.poses = pipeline.odometry();
+    write_trajectory((out / "odometry.kitti").string(), odom);
+    const PointCloud map = pipeline.map(o.config.output.map_resolution);
+    write_ply((out / "map.ply").string(), map);
+    if (o.config.output.pcd) write_pcd((out / "map.pcd").string(), map);
+    const Json graph = graph_json(pipeline, frame_offset);
+    write_file_atomic((out / "graph.json").string(), [&](std::ostream& s) { s << graph.dump() << "\n"; });
+    Json stats = stats_json(pipeline);
+    stats["peak_rss_mb"] = peak_rss_bytes() / 1e6;
+    stats["partial"] = signal != 0;
+    if (signal) stats["interrupted_by"] = signal == SIGINT ? "SIGINT" : "SIGTERM";
+    Json warnings = Json::array();  // e.g. a truncated bag: mapped up to the damage
+    for (const std::string& w : input_warnings) warnings.push_back(w);
+    stats["input_warnings"] = warnings;
+    write_file_atomic((out / "stats.json").string(), [&](std::ostream& s) { s << stats.dump() << "\n"; });
+    write_file_atomic((out / "config.yaml").string(), [&](std::ostream& s) { s << o.config.to_yaml(); });
+    write_session((out / "session").string(), pipeline, traj.stamps);
+  });
 }
 
 std::string progress_detail(const MappingPipeline& p) {

@@ -4,6 +4,7 @@
 // error(d) ~ error + 2 b^T d + d^T H d.
 #include <array>
 #include <memory>
+#include <optional>
 
 #include "gcmap/core/gaussian_voxel_map.hpp"
 #include "gcmap/core/point_cloud.hpp"
@@ -33,6 +34,16 @@ class Factor {
   // Error at trial poses, judged with what was frozen at the last linearization (voxel association,
   // robust weight), so LM's gain ratio compares like with like.
   virtual double trial_error(const Eigen::Isometry3d* const* poses) const = 0;
+  // Worth keeping its last linearization for reuse while its poses barely move (graph/lazy_backend.hpp);
+  // such a factor's cost must depend on the relative pose T_1^-1 T_0 of its keys only.
+  virtual bool reusable() const { return false; }
+
+  // The linearization a lazy backend keeps, with the poses it was taken at.
+  struct Kept {
+    std::array<Eigen::Isometry3d, 2> poses;
+    FactorLinearization lin;
+  };
+  std::optional<Kept> kept;
 
  protected:
   std::array<int, 2> keys_{-1, -1};
@@ -51,6 +62,7 @@ class MatchingCostFactor : public Factor {
   int num_keys() const override { return 2; }
   void linearize(const Eigen::Isometry3d* const* poses, FactorLinearization& out) override;
   double trial_error(const Eigen::Isometry3d* const* poses) const override;
+  bool reusable() const override { return true; }
 
   const PointCloud& source() const { return *source_; }
   const GaussianVoxelMap& target() const { return *target_; }

@@ -17,12 +17,21 @@ std::string read_file(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw Error(path + ": no such file");
   if (std::filesystem::is_directory(path, ec)) throw Error(path + ": is a directory, expected a file");
-  std::ifstream in(path, std::ios::binary);
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
   if (!in) throw Error(path + ": cannot open (" + std::strerror(errno) + ")");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) throw Error(path + ": read error");
-  return std::move(ss).str();
+  // One read into a buffer of the file's size; files without one (pipes, /proc) through the stream.
+  const std::streamoff size = in.tellg();
+  in.seekg(0);
+  if (size <= 0) {
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    if (in.bad()) throw Error(path + ": read error");
+    return std::move(ss).str();
+  }
+  std::string bytes(static_cast<size_t>(size), '\0');
+  in.read(bytes.data(), size);
+  if (in.gcount() != size) throw Error(path + ": read error (file shrank while read?)");
+  return bytes;
 }
 
 void write_file_atomic(const std::string& path, const std::function<void(std::ostream&)>& write) {
@@ -38,10 +47,14 @@ void write_file_atomic(const std::string& path, const std::function<void(std::os
       throw;
     }
     out.flush();
-    if (!out) {
+    int why = errno;
+    if (out) {
       out.close();
+      why = errno;
+    }
+    if (!out) {
       std::remove(tmp.c_str());
-      throw Error(path + ": write failed (disk full?)");
+      throw Error(path + ": write failed (" + std::strerror(why) + ")");
     }
   }
   if (std::rename(tmp.c_str(), path.c_str()) != 0) {
@@ -49,6 +62,48 @@ void write_file_atomic(const std::string& path, const std::function<void(std::os
     std::remove(tmp.c_str());
     throw Error(path + ": cannot rename temporary file (" + why + ")");
   }
+}
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// Moves every entry of `staging` over its namesake in `dir`; a folder is swapped by two renames.
+void move_entries(const fs::path& staging, const fs::path& dir) {
+  const std::string pid = std::to_string(::getpid());
+  for (const auto& entry : fs::directory_iterator(staging)) {
+    const fs::path target = dir / entry.path().filename();
+    if (entry.is_directory() && fs::exists(target)) {
+      const fs::path old = target.string() + ".old." + pid;
+      fs::rename(target, old);
+      fs::rename(entry.path(), target);
+      fs::remove_all(old);
+    } else {
+      fs::rename(entry.path(), target);
+    }
+  }
+}
+
+}  // namespace
+
+void write_folder_contents_atomic(const std::string& dir, const std::function<void(const std::string&)>& write) {
+  const fs::path staging = fs::path(dir) / (".incomplete." + std::to_string(::getpid()));
+  std::error_code ec;
+  fs::remove_all(staging, ec);
+  if (!fs::create_directories(staging, ec) || ec) throw Error(staging.string() + ": cannot create (" + ec.message() + ")");
+  try {
+    write(staging.string());
+    move_entries(staging, dir);
+  } catch (const Error& e) {
+    fs::remove_all(staging, ec);
+    std::string what = e.what();
+    for (size_t at; (at = what.find(staging.string())) != std::string::npos;) what.replace(at, staging.string().size(), dir);
+    throw Error(what + "; the previous outputs in " + dir + " are unchanged");
+  } catch (const fs::filesystem_error& e) {
+    fs::remove_all(staging, ec);
+    throw Error(dir + ": cannot move the new outputs in (" + e.code().message() + ")");
+  }
+  fs::remove_all(staging, ec);
 }
 
 }  // namespace gcmap

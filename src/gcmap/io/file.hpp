@@ -12,4 +12,9 @@ std::string read_file(const std::string& path);
 // see a half-written file. Throws Error("PATH: ...") on failure and removes the temporary.
 void write_file_atomic(const std::string& path, const std::function<void(std::ostream&)>& write);
 
+// Writes a set of outputs into a staging folder inside `dir` and moves them into `dir` only once all
+// of them were written, so a full disk or a failing writer leaves the previous set whole (files and
+// folders alike). `write` gets the staging folder; errors name the output's final path.
+void write_folder_contents_atomic(const std::string& dir, const std::function<void(const std::string& staging)>& write);
+
 }  // namespace gcmap

@@ -1,9 +1,11 @@
 #include "gcmap/io/session.hpp"
 
+#include <fcntl.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
 #include <bit>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <sstream>
@@ -149,11 +151,11 @@ Submap get_submap(Reader& in, Eigen::Isometry3d* T_world_submap) {
 }
 
 // What a run leaves besides the clouds, readable by people and by yaml-cpp.
-std::string manifest_yaml(const MappingPipeline& p) {
+std::string manifest_yaml(const Session& s) {
   std::ostringstream m;
   m << "format: gcmap-session\nversion: " << kSessionVersion << "\ncreated_by: gcmap " << GCMAP_VERSION
-    << "\nframes: " << p.num_frames() << "\nsubmaps: " << p.submaps().size() << "\nfactors:\n";
-  for (const GlobalFactor& f : p.factors())
+    << "\nframes: " << s.trajectory.size() << "\nsubmaps: " << s.submaps.size() << "\nfactors:\n";
+  for (const SessionFactor& f : s.factors)
     m << "  - [" << to_string(f.kind) << ", " << f.source << ", " << f.target << ", " << f.overlap << "]\n";
   return m.str();
 }
@@ -204,6 +206,11 @@ void replace_folder(const fs::path& dir, const std::function<void(const fs::path
   if (!fs::create_directories(tmp, ec) || ec) throw Error(tmp.string() + ": cannot create (" + ec.message() + ")");
   try {
     write(tmp);
+    // One atomic swap where the file system can (Linux renameat2): no instant without a session.
+    if (fs::exists(dir) && ::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, dir.c_str(), RENAME_EXCHANGE) == 0) {
+      fs::remove_all(tmp, ec);
+      return;
+    }
     if (fs::exists(dir)) fs::rename(dir, old);
     fs::rename(tmp, dir);
   } catch (const fs::filesystem_error& e) {
@@ -218,22 +225,39 @@ void replace_folder(const fs::path& dir, const std::function<void(const fs::path
 
 }  // namespace
 
+Session make_session(const MappingPipeline& p, const std::vector<double>& stamps) {
+  Session s;
+  s.config = p.config();
+  s.submaps = p.submaps();
+  const Eigen::Isometry3d T_out_world = p.mapper().output_from_world();
+  for (const Submap& m : p.submaps()) s.T_world_submap.push_back(T_out_world * p.mapper().submap_pose(m.id));
+  for (const GlobalFactor& f : p.factors()) s.factors.push_back({f.kind, f.source, f.target, f.overlap});
+  s.trajectory = p.trajectory();
+  s.stamps = stamps;
+  s.stamps.resize(s.trajectory.size(), 0.0);
+  return s;
+}
+
 void write_session(const std::string& dir, const MappingPipeline& p, const std::vector<double>& stamps) {
+  write_session(dir, make_session(p, stamps));
+}
+
+void write_session(const std::string& dir, const Session& s) {
+  if (s.submaps.size() != s.T_world_submap.size() || s.stamps.size() != s.trajectory.size())
+    throw Error(dir + ": inconsistent session (submaps and poses, or frames and stamps, differ in number)");
   replace_folder(dir, [&](const fs::path& tmp) {
-    const Eigen::Isometry3d T_out_world = p.mapper().output_from_world();
     std::string bin(kMagic, sizeof kMagic);
     put<uint32_t>(bin, kSessionVersion);
-    put<uint32_t>(bin, static_cast<uint32_t>(p.submaps().size()));
-    for (const Submap& s : p.submaps()) put_submap(bin, s, T_out_world * p.mapper().submap_pose(s.id));
+    put<uint32_t>(bin, static_cast<uint32_t>(s.submaps.size()));
+    for (size_t k = 0; k < s.submaps.size(); ++k) put_submap(bin, s.submaps[k], s.T_world_submap[k]);
     write_file_atomic((tmp / "submaps.bin").string(), [&](std::ostream& o) { o.write(bin.data(), bin.size()); });
     Trajectory t;
-    t.poses = p.trajectory();
-    t.stamps = stamps;
-    t.stamps.resize(t.poses.size(), 0.0);
+    t.poses = s.trajectory;
+    t.stamps = s.stamps;
     t.format = TrajectoryFormat::tum;
     write_trajectory((tmp / "trajectory.tum").string(), t);
-    write_file_atomic((tmp / "config.yaml").string(), [&](std::ostream& o) { o << p.config().to_yaml(); });
-    write_file_atomic((tmp / "manifest.yaml").string(), [&](std::ostream& o) { o << manifest_yaml(p); });
+    write_file_atomic((tmp / "config.yaml").string(), [&](std::ostream& o) { o << s.config.to_yaml(); });
+    write_file_atomic((tmp / "manifest.yaml").string(), [&](std::ostream& o) { o << manifest_yaml(s); });
   });
 }
 

@@ -11,7 +11,8 @@
 //                  f64[7] T_submap_keyframe, u32 rings, u32 sectors (0 0: no descriptors), per
 //                  keyframe rings x sectors cells and rings ring-key floats, u32 points, f32[3] per
 //                  point, f32[6] per point (covariance xx xy xz yy yz zz)
-// The folder is written beside the old one and renamed over it: a crash leaves the old or the new.
+// The folder is written beside the old one and swapped with it in one rename (RENAME_EXCHANGE;
+// elsewhere two renames): a crash leaves the old or the new.
 #include <string>
 #include <vector>
 
@@ -21,11 +22,7 @@ namespace gcmap {
 
 inline constexpr int kSessionVersion = 1;
 
-struct SessionFactor {
-  FactorKind kind = FactorKind::matching_cost;
-  int source = 0, target = 0;
-  double overlap = 0.0;
-};
+using SessionFactor = FactorRecord;
 
 struct Session {
   int version = kSessionVersion;
@@ -39,7 +36,10 @@ struct Session {
   std::vector<Eigen::Isometry3d> trajectory;    // per frame
 };
 
-// Writes DIR (e.g. OUT/session) from a finished pipeline; stamps per frame.
+// The session of a finished pipeline (poses in its output frame); stamps per frame.
+Session make_session(const MappingPipeline& pipeline, const std::vector<double>& stamps);
+// Writes DIR (e.g. OUT/session); version and created_by are written as this gcmap's.
+void write_session(const std::string& dir, const Session& session);
 void write_session(const std::string& dir, const MappingPipeline& pipeline, const std::vector<double>& stamps);
 // Throws Error naming the file for anything missing, truncated or of a newer version.
 Session read_session(const std::string& dir);

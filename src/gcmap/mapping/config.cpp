@@ -29,6 +29,14 @@ E parse_enum(const std::string& text, const std::string& key, const std::pair<E,
 constexpr std::pair<GlobalMode, const char*> kGlobalModes[] = {{GlobalMode::full, "full"},
                                                                {GlobalMode::sliding_window, "sliding-window"}};
 constexpr std::pair<FactorSource, const char*> kFactorSources[] = {{FactorSource::vgicp, "vgicp"}, {FactorSource::se3, "se3"}};
+constexpr std::pair<Relinearize, const char*> kRelinearize[] = {{Relinearize::always, "always"}, {Relinearize::moved, "moved"}};
+
+template <typename E>
+E parse_config_enum(const std::string& text, const std::string& key) {
+  if constexpr (std::is_same_v<E, GlobalMode>) return parse_enum(text, key, kGlobalModes);
+  else if constexpr (std::is_same_v<E, FactorSource>) return parse_enum(text, key, kFactorSources);
+  else return parse_enum(text, key, kRelinearize);
+}
 
 // Visits every (section, key, field) once, for loading and dumping alike.
 template <typename Config, typename Visitor>
@@ -70,6 +78,8 @@ void visit(Config& c, Visitor&& v) {
   v("global", "max_iterations", c.global.max_iterations);
   v("global", "relative_error_tol", c.global.relative_error_tol);
   v("global", "final_iterations", c.global.final_iterations);
+  v("global", "relinearize", c.global.relinearize);
+  v("global", "relinearize_threshold", c.global.relinearize_threshold);
   v("global", "factor_source_points", c.global.factor_source_points);
   v("loop", "enabled", c.loop.enabled);
   v("loop", "rings", c.loop.scan_context.rings);
@@ -91,6 +101,9 @@ void visit(Config& c, Visitor&& v) {
   v("localize", "submap_radius", c.localize.submap_radius);
   v("localize", "min_inlier_fraction", c.localize.min_inlier_fraction);
   v("localize", "relocalize_every", c.localize.relocalize_every);
+  v("merge", "max_descriptor_distance", c.merge.max_descriptor_distance);
+  v("merge", "max_verifications", c.merge.max_verifications);
+  v("merge", "max_iterations", c.merge.max_iterations);
   v("output", "map_resolution", c.output.map_resolution);
   v("output", "pcd", c.output.pcd);
 }
@@ -124,10 +137,12 @@ std::string format_double(double v) {
 
 const char* to_string(GlobalMode mode) { return kGlobalModes[static_cast<int>(mode)].second; }
 const char* to_string(FactorSource source) { return kFactorSources[static_cast<int>(source)].second; }
-GlobalMode parse_global_mode(const std::string& text, const std::string& key) { return parse_enum(text, key, kGlobalModes); }
+const char* to_string(Relinearize policy) { return kRelinearize[static_cast<int>(policy)].second; }
+GlobalMode parse_global_mode(const std::string& text, const std::string& key) { return parse_config_enum<GlobalMode>(text, key); }
 FactorSource parse_factor_source(const std::string& text, const std::string& key) {
-  return parse_enum(text, key, kFactorSources);
+  return parse_config_enum<FactorSource>(text, key);
 }
+Relinearize parse_relinearize(const std::string& text, const std::string& key) { return parse_config_enum<Relinearize>(text, key); }
 
 MappingConfig MappingConfig::load(const std::string& path) { return parse(read_file(path), path); }
 
@@ -151,8 +166,7 @@ MappingConfig MappingConfig::parse(const std::string& text, const std::string& p
     using T = std::decay_t<decltype(field)>;
     const std::string key = std::string(s) + "." + k;
     try {
-      if constexpr (std::is_same_v<T, GlobalMode>) field = parse_global_mode(node.as<std::string>(), key);
-      else if constexpr (std::is_same_v<T, FactorSource>) field = parse_factor_source(node.as<std::string>(), key);
+      if constexpr (std::is_enum_v<T>) field = parse_config_enum<T>(node.as<std::string>(), key);
       else field = node.as<T>();
     } catch (const Error& e) {
       throw Error(path + ": " + e.what());
@@ -215,6 +229,7 @@ void MappingConfig::validate() const {
   need(global.th_min >= 0 && global.th_min <= 1, "global.th_min must be in [0, 1]");
   need(global.voxel_resolution > 0, "global.voxel_resolution must be positive");
   need(global.window >= 1, "global.window must be >= 1");
+  need(global.relinearize_threshold >= 0, "global.relinearize_threshold must be >= 0");
   need(global.max_iterations >= 1 && global.final_iterations >= 1, "global iteration limits must be >= 1");
   need(local.relative_error_tol >= 0 && global.relative_error_tol >= 0, "relative_error_tol must be >= 0");
   need(loop.scan_context.rings >= 1 && loop.scan_context.sectors >= 2 && loop.scan_context.max_radius > 0,
@@ -230,6 +245,8 @@ void MappingConfig::validate() const {
   need(localize.submap_radius > 0, "localize.submap_radius must be positive");
   need(localize.min_inlier_fraction > 0 && localize.min_inlier_fraction <= 1, "localize.min_inlier_fraction must be in (0, 1]");
   need(localize.relocalize_every >= 1, "localize.relocalize_every must be >= 1");
+  need(merge.max_descriptor_distance > 0 && merge.max_descriptor_distance <= 1, "merge.max_descriptor_distance must be in (0, 1]");
+  need(merge.max_verifications >= 1 && merge.max_iterations >= 1, "merge.max_verifications and merge.max_iterations must be >= 1");
   need(output.map_resolution > 0, "output.map_resolution must be positive");
 }
 
@@ -264,8 +281,7 @@ T convert(const MappingConfig::Value& value, const std::string& key) {
   } else {
     const auto* text = std::get_if<std::string>(&value);
     if (!text) throw wrong("a name");
-    if constexpr (std::is_same_v<T, GlobalMode>) return parse_global_mode(*text, key);
-    else return parse_factor_source(*text, key);
+    return parse_config_enum<T>(*text, key);
   }
 }
 

@@ -13,12 +13,17 @@ namespace gcmap {
 enum class GlobalMode { full, sliding_window };
 // vgicp: matching-cost factors (the paper); se3: relative poses from scan matching (its ablation).
 enum class FactorSource { vgicp, se3 };
-// The names used in YAML and on the command line ("full", "sliding-window", "vgicp", "se3").
+// always: every factor at every LM iteration (the paper); moved: only factors whose poses moved
+// more than global.relinearize_threshold since their last linearization (graph/lazy_backend.hpp).
+enum class Relinearize { always, moved };
+// The names used in YAML and on the command line ("full", "sliding-window", "vgicp", "se3", "always", "moved").
 const char* to_string(GlobalMode mode);
 const char* to_string(FactorSource source);
+const char* to_string(Relinearize policy);
 // Throws Error naming `key` when the text is none of the names.
 GlobalMode parse_global_mode(const std::string& text, const std::string& key);
 FactorSource parse_factor_source(const std::string& text, const std::string& key);
+Relinearize parse_relinearize(const std::string& text, const std::string& key);
 
 struct PreprocessConfig {
   double min_range = 2.0;  // m: drops returns from the ego vehicle
@@ -77,6 +82,8 @@ struct GlobalMappingConfig {
   int max_iterations = 10;        // per insertion (warm-started)
   double relative_error_tol = 1e-4;  // per insertion; the final optimization runs to 1e-6
   int final_iterations = 50;
+  Relinearize relinearize = Relinearize::moved;
+  double relinearize_threshold = 0.1;  // norm of a factor's relative-pose change [rad, m] since its linearization (GLIM: 0.1)
   // Points of a submap used as the source of its matching-cost factors and overlaps (an even
   // subsample; target voxel maps keep every point). The global graph's cost is linear in it.
   int factor_source_points = 20000;
@@ -118,6 +125,15 @@ struct LocalizationConfig {
   int relocalize_every = 5;  // frames between global initialization attempts while lost
 };
 
+// Merging sessions (gcmap merge): cross-session places are found and verified with loop.*.
+struct MergeConfig {
+  // Looser than loop.max_descriptor_distance: another session passes a place in another lane or
+  // direction; the GICP verification (loop.*) rejects the wrong ones.
+  double max_descriptor_distance = 0.3;
+  int max_verifications = 10;  // GICP checks (distinct submap pairs, best ScanContext candidates first) per session to place
+  int max_iterations = 50;     // joint LM over all sessions
+};
+
 struct OutputConfig {
   double map_resolution = 0.1;
   bool pcd = false;
@@ -130,6 +146,7 @@ struct MappingConfig {
   GlobalMappingConfig global;
   LoopConfig loop;
   LocalizationConfig localize;
+  MergeConfig merge;
   OutputConfig output;
 
   // Throws Error("PATH: ...") naming the offending key.

@@ -10,4 +10,11 @@ inline constexpr FactorKind kFactorKinds[] = {FactorKind::matching_cost, FactorK
 // As graph.json and sessions spell it.
 const char* to_string(FactorKind kind);
 
+// A factor of a global graph as sessions record it: its submaps and their overlap at creation.
+struct FactorRecord {
+  FactorKind kind = FactorKind::matching_cost;
+  int source = 0, target = 0;
+  double overlap = 0.0;
+};
+
 }  // namespace gcmap

@@ -28,10 +28,29 @@ LMConfig lm_config(int iterations, double relative_error_tol = LMConfig{}.relati
 }
 }  // namespace
 
+Matrix6d odometry_factor_information() {
+  Matrix6d info = Matrix6d::Identity();
+  info.diagonal() << 1e4, 1e4, 1e4, 1e3, 1e3, 1e3;
+  return info;
+}
+
 GlobalMapper::GlobalMapper(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend)
     : config_(config),
       backend_(std::move(backend)),
-      lm_(lm_config(config.global.max_iterations, config.global.relative_error_tol), backend_) {}
+      lazy_(config.global.relinearize == Relinearize::moved
+                ? std::make_shared<LazyBackend>(backend_, config.global.relinearize_threshold)
+                : nullptr),
+      lm_(lm_config(config.global.max_iterations, config.global.relative_error_tol), lm_backend()) {}
+
+std::shared_ptr<LinearizationBackend> GlobalMapper::lm_backend() const {
+  return lazy_ ? std::static_pointer_cast<LinearizationBackend>(lazy_) : backend_;
+}
+
+void GlobalMapper::count_linearizations() {
+  if (!lazy_) return;
+  stats_.factor_linearizations = lazy_->linearized();
+  stats_.factor_reuses = lazy_->reused();
+}
 
 void GlobalMapper::add_factor(GlobalFactor f) {
   // An explicit loop leaves its target open to the matching-cost factor of the implicit closure.
@@ -66,10 +85,8 @@ void GlobalMapper::insert(Submap s, LoopDetector* loops) {
   if (connect_overlapping(id, first) == 0) {
     // Only where the submap would otherwise be disconnected.
     const Submap& prev = submaps_[id - 1];
-    Matrix6d info = Matrix6d::Identity();
-    info.diagonal() << 1e4, 1e4, 1e4, 1e3, 1e3, 1e3;
     add_factor({FactorKind::odometry, id, id - 1, 0.0,
-                std::make_shared<RelativePoseFactor>(id - 1, id, prev.T_odom.inverse() * cur.T_odom, info)});
+                std::make_shared<RelativePoseFactor>(id - 1, id, prev.T_odom.inverse() * cur.T_odom, odometry_factor_information())});
   }
   stats_.factors.add(w.lap_ms());
   std::optional<LoopRecord> loop;
@@ -78,8 +95,12 @@ void GlobalMapper::insert(Submap s, LoopDetector* loops) {
   w.lap_ms();  // loop time is counted in its own statistics
   // A verified loop says the estimate was off where it closes, so the revisit factors made at that
   // estimate may sit in a wrong minimum: the loop first steers without them.
+  // Poses then move by metres: this insertion re-linearizes every factor whose poses moved at all.
   int iterations = 0;
-  if (loop) iterations += lm_.optimize(without_revisit_factors(), values_, {0}).iterations;
+  if (loop) {
+    if (lazy_) lazy_->set_threshold(0.0);
+    iterations += lm_.optimize(without_revisit_factors(), values_, {0}).iterations;
+  }
   iterations += lm_.optimize(graph(), values_, {0}).iterations;
   double opt_ms = w.lap_ms();
   if (loop) {
@@ -88,8 +109,10 @@ void GlobalMapper::insert(Submap s, LoopDetector* loops) {
     stats_.factors.add(w.lap_ms());
     if (added) iterations += lm_.optimize(graph(), values_, {0}).iterations;
     opt_ms += w.lap_ms();
+    if (lazy_) lazy_->set_threshold(config_.global.relinearize_threshold);
   }
   stats_.optimization.add(opt_ms);
+  count_linearizations();
   stats_.per_submap.push_back({id + 1, static_cast<int>(factors_.size()), opt_ms, iterations});
 }
 
@@ -142,11 +165,12 @@ int GlobalMapper::connect_overlapping(int id, int first) {
 void GlobalMapper::optimize_final(std::optional<int> max_iterations) {
   const int iterations = max_iterations ? std::min(*max_iterations, config_.global.final_iterations) : config_.global.final_iterations;
   if (factors_.empty() || iterations <= 0) return;
-  LevenbergMarquardt final_lm(lm_config(iterations), backend_);
+  LevenbergMarquardt final_lm(lm_config(iterations), lm_backend());
   Stopwatch w;
   stats_.final_iterations = final_lm.optimize(graph(), values_, {0}).iterations;
   stats_.final_optimization_ms = w.ms();
   stats_.optimization.add(stats_.final_optimization_ms);
+  count_linearizations();
 }
 
 std::vector<FactorEvaluation> GlobalMapper::evaluate_factors() const {

@@ -1,11 +1,13 @@
 #pragma once
 // Global mapping (paper Section III-B): each new submap gets a matching-cost factor to every past
-// submap it overlaps; LM re-linearizes every factor each iteration, warm-started per insertion.
+// submap it overlaps; LM, warm-started per insertion, re-linearizes every factor each iteration
+// (global.relinearize: always, the paper) or only those whose poses moved (moved).
 #include <memory>
 #include <optional>
 #include <vector>
 
 #include "gcmap/core/timer.hpp"
+#include "gcmap/graph/lazy_backend.hpp"
 #include "gcmap/graph/levenberg_marquardt.hpp"
 #include "gcmap/mapping/config.hpp"
 #include "gcmap/mapping/factor_kind.hpp"
@@ -21,6 +23,9 @@ struct GlobalFactor {
   double overlap = 0.0;        // at creation (matching_cost and se3)
   std::shared_ptr<Factor> factor;
 };
+
+// Information of a relative-pose factor that keeps a submap connected where nothing overlaps it.
+Matrix6d odometry_factor_information();
 
 // A factor's state at the current estimate.
 struct FactorEvaluation {
@@ -38,6 +43,7 @@ struct GlobalMappingStats {
   std::vector<PerSubmap> per_submap;
   double final_optimization_ms = 0.0;  // also one sample of optimization
   int final_iterations = 0;
+  size_t factor_linearizations = 0, factor_reuses = 0;  // over all LM iterations (reuses: relinearize moved)
 };
 
 class GlobalMapper {
@@ -61,6 +67,8 @@ class GlobalMapper {
  private:
   void add_factor(GlobalFactor f);
   FactorGraph graph() const;
+  std::shared_ptr<LinearizationBackend> lm_backend() const;
+  void count_linearizations();
   // Matching-cost (or se3) factors from submap id to every past submap in [first, id) not yet
   // connected whose overlap reaches global.th_min; returns how many were added.
   int connect_overlapping(int id, int first);
@@ -70,6 +78,7 @@ class GlobalMapper {
 
   MappingConfig config_;
   std::shared_ptr<LinearizationBackend> backend_;
+  std::shared_ptr<LazyBackend> lazy_;  // between LM and backend_ when global.relinearize is moved
   std::vector<Submap> submaps_;
   std::vector<GlobalFactor> factors_;
   std::vector<char> connected_;   // per past submap: has a factor from the submap being inserted

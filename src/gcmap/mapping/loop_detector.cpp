@@ -4,6 +4,12 @@
 
 namespace gcmap {
 
+Eigen::Isometry3d place_match_guess(const Submap& source, int ka, const Submap& target, int kb, double yaw) {
+  // Keyframe a (source) matched keyframe b (target) with R_b_a = Rz(yaw), positions unknown.
+  const Eigen::Isometry3d T_b_a(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()));
+  return target.T_submap_keyframe[kb] * T_b_a * source.T_submap_keyframe[ka].inverse();
+}
+
 void LoopDetector::add_submap(const Submap& submap) {
   for (size_t k = 0; k < submap.descriptors.size(); ++k) {
     places_.add(submap.descriptors[k]);
@@ -32,11 +38,9 @@ std::optional<LoopRecord> LoopDetector::detect(int id, const std::vector<Submap>
   stats_.detection.add(w.lap_ms());
   if (best.place < 0 || best.match.distance > config_.max_descriptor_distance) return std::nullopt;
 
-  // Keyframe a (this submap) matched keyframe b (submap j) with R_b_a = Rz(yaw), positions unknown.
   const auto [j, kb] = place_keyframe_[best.place];
   const int ka = place_keyframe_[best_query].second;
-  const Eigen::Isometry3d T_b_a(Eigen::AngleAxisd(best.match.yaw, Eigen::Vector3d::UnitZ()));
-  const Eigen::Isometry3d init = submaps[j].T_submap_keyframe[kb] * T_b_a * submaps[id].T_submap_keyframe[ka].inverse();
+  const Eigen::Isometry3d init = place_match_guess(submaps[id], ka, submaps[j], kb, best.match.yaw);
   const LoopVerification v = verify_loop(*submaps[id].cloud, *submaps[j].cloud, init, config_);
   stats_.verification.add(w.lap_ms());
   loops_.push_back({id, j, best.match.distance, v.inlier_fraction, v.inlier_rmse, v.accepted, v.T_target_source});

@@ -23,6 +23,10 @@ struct LoopStats {
   TimingStats verification;  // GICP, per candidate
 };
 
+// T_target_source of two submaps from a ScanContext match of the source's keyframe ka with the
+// target's keyframe kb: the yaw only, the keyframes' positions taken as equal (GICP refines it).
+Eigen::Isometry3d place_match_guess(const Submap& source, int ka, const Submap& target, int kb, double yaw);
+
 class LoopDetector {
  public:
   explicit LoopDetector(const LoopConfig& config) : config_(config) {}

@@ -97,6 +97,8 @@ Json stats_json(const MappingPipeline& pipeline) {
   stats["per_submap"] = per;
   stats["final_optimization_ms"] = ms.global.final_optimization_ms;
   stats["final_iterations"] = ms.global.final_iterations;
+  stats["factor_linearizations"] = ms.global.factor_linearizations;
+  stats["factor_reuses"] = ms.global.factor_reuses;
   return stats;
 }
 

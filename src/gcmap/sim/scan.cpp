@@ -38,10 +38,10 @@ struct Simulator::Rays {
 void Simulator::cast_group(size_t frame, int g, const std::vector<ActiveMover>& movers, Rays& out) const {
   // One generator per group and frame: deterministic for any thread count. The first keeps the
   // historical stream (dropout, noise); the realism draws from the second.
-  std::mt19937 rng(static_cast<uint32_t>(config_.seed * 1000003u + frame * 7919u + g));
+  std::mt19937 rng(static_cast<uint32_t>(drive_seed_ * 1000003u + frame * 7919u + g));
   std::normal_distribution<float> noise(0.f, static_cast<float>(config_.noise));
   std::uniform_real_distribution<float> u(0.f, 1.f);
-  Rng extra(hash_key(config_.seed, frame, static_cast<uint64_t>(g)));
+  Rng extra(hash_key(drive_seed_, frame, static_cast<uint64_t>(g)));
   const float dt = realism_.motion_distortion ? sensor_.period * g / out.groups : 0.f;
   const Eigen::Isometry3d T = realism_.motion_distortion ? pose_at(frame, dt) : poses_[frame];
   const Eigen::Matrix3f R = T.linear().cast<float>();
@@ -103,7 +103,7 @@ void Simulator::mix_depth_edges(size_t frame, Rays& rays) const {
     for (int b = 0; b < rays.per; ++b) {
       const size_t i = static_cast<size_t>(g) * rays.per + b, j = i + rays.per;
       if (!rays.valid[i] || !rays.valid[j] || std::abs(rays.range[i] - rays.range[j]) < 1.f) continue;
-      const uint64_t key = hash_key(config_.seed ^ 0x313, frame, i);
+      const uint64_t key = hash_key(drive_seed_ ^ 0x313, frame, i);
       if (unit_float(key) >= kMixedPixelRate) continue;
       const size_t far = rays.range[i] > rays.range[j] ? i : j, close = far == i ? j : i;
       const float r = rays.range[close] + unit_float(mix64(key)) * (rays.range[far] - rays.range[close]);

@@ -8,12 +8,45 @@
 namespace gcmap::sim {
 
 namespace {
-void add_waypoints(Scenario& s, std::initializer_list<std::pair<float, float>> pts) {
+using Waypoints = std::initializer_list<std::pair<float, float>>;
+
+void add_waypoints(Scenario& s, Waypoints pts) {
   for (auto [x, y] : pts) s.waypoints.emplace_back(x, y);
 }
+
+// Routes 1, 2, ... of the scenarios that have them, in blocks on the grid of route 0. Each starts
+// elsewhere and drives some of route 0's streets in the same direction (where ScanContext
+// recognizes places) and some in the opposite one.
+std::vector<Eigen::Vector2f> other_route(const std::string& name, int route, const std::vector<Eigen::Vector2f>& route0) {
+  std::vector<Eigen::Vector2f> out;
+  auto from = [&](Waypoints pts) {
+    for (auto [x, y] : pts) out.emplace_back(x, y);
+  };
+  if (name == "loop") {
+    // From the first loop's far corner, the rest of route 0, then back along its first street.
+    out.assign(route0.begin() + 2, route0.end());
+    out.emplace_back(0.f, 0.f);
+  } else if (name == "small" && route == 1) {
+    from({{0.5f, 0}, {1, 0}, {1, 1}, {0, 1}, {0, 0}, {0.75f, 0}});  // the same loop, from 20 m further
+  } else if (name == "small") {
+    from({{0.75f, 0}, {2, 0}, {2, 1}, {1, 1}, {1, 0}, {1.25f, 0}});  // the next block, from 30 m into route 0
+  } else if (route == 1) {  // city
+    from({{5, 1}, {3, 1}, {3, 3}, {1, 3}, {1, -1}, {4, -1}, {4, 2}});
+  } else {
+    from({{-1, 5}, {4, 5}, {4, 2}, {0, 2}, {0, 0}, {-1, 0}});
+  }
+  return out;
+}
+
 }  // namespace
 
-Scenario make_scenario(const std::string& name, int frames) {
+int num_routes(const std::string& name) {
+  if (name == "loop") return 2;
+  if (name == "small" || name == "city") return 3;
+  return 1;
+}
+
+Scenario make_scenario(const std::string& name, int frames, int route) {
   Scenario s;
   s.name = name;
   if (name == "loop") {
@@ -66,6 +99,11 @@ Scenario make_scenario(const std::string& name, int frames) {
   } else {
     throw Error("--scenario: expected loop, small, corridor, city, highway or forest, got '" + name + "'");
   }
+  if (route < 0 || route >= num_routes(name))
+    throw Error("--route: the '" + name + "' scenario has routes 0 to " + std::to_string(num_routes(name) - 1) + ", got " +
+                std::to_string(route));
+  s.world_waypoints = s.waypoints;
+  if (route > 0) s.waypoints = other_route(name, route, s.waypoints);
   if (frames < 0) throw Error("--frames: must be >= 0");
   if (frames > 0) s.frames = frames;
   if (frames == 1 || (!s.realistic && s.frames < 2)) throw Error("--frames: need at least 2 frames");

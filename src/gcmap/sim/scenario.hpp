@@ -14,7 +14,9 @@ struct Scenario {
   std::string name;
   SceneKind scene = SceneKind::grid_city;
   float block = 50.f;                      // street spacing in m (the unit of the waypoints)
-  std::vector<Eigen::Vector2f> waypoints;  // in blocks, along streets
+  std::vector<Eigen::Vector2f> waypoints;  // in blocks, along streets: the route driven
+  // Route 0's waypoints: the street grid (world, traffic) that every route of the scenario shares.
+  std::vector<Eigen::Vector2f> world_waypoints;
   int frames = 0;  // constant speed: frames spread evenly over the route; else 0 = the whole drive
   bool feature_poor = false;
   bool realistic = false;  // realism on by default, traffic, sidewalks, a speed profile
@@ -29,7 +31,11 @@ struct Scenario {
 };
 // loop, small, corridor (evenly spaced frames, no realism by default), city, highway, forest.
 // `frames` > 0 overrides the frame count (for realistic scenarios: the first `frames` frames).
-Scenario make_scenario(const std::string& name, int frames);
+// `route` > 0 drives another route through the same world (city, small and loop have more than one),
+// starting elsewhere and overlapping route 0 in part.
+Scenario make_scenario(const std::string& name, int frames, int route = 0);
+// How many routes the scenario has (1 for those without alternatives).
+int num_routes(const std::string& name);
 
 // The route as a dense polyline (5 cm steps) with rounded corners, on the road's centre line;
 // `corner_starts[k]` is the index where the curve at waypoint k begins.

@@ -6,6 +6,7 @@
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/sim/builders.hpp"
+#include "gcmap/sim/rng.hpp"
 
 namespace gcmap::sim {
 
@@ -30,8 +31,8 @@ std::unique_ptr<World> build_world(const Scenario& s, uint64_t seed, const Reali
                                    const std::vector<Eigen::Vector2f>& centerline) {
   std::unique_ptr<World> w;
   if (s.scene == SceneKind::grid_city) {
-    Eigen::Vector2f lo = s.waypoints[0], hi = lo;
-    for (const auto& p : s.waypoints) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+    Eigen::Vector2f lo = s.world_waypoints[0], hi = lo;
+    for (const auto& p : s.world_waypoints) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
     const Eigen::Vector2i blo(std::floor(lo.x()) - 1, std::floor(lo.y()) - 1), bhi(std::ceil(hi.x()) + 1, std::ceil(hi.y()) + 1);
     const Eigen::Vector2f origin(blo.x() * s.block - s.block, blo.y() * s.block - s.block);
     w = std::make_unique<World>(s.terrain, origin, origin + ((bhi - blo).array() + 2).cast<float>().matrix() * s.block);
@@ -52,8 +53,8 @@ std::unique_ptr<World> build_world(const Scenario& s, uint64_t seed, const Reali
 Traffic build_traffic(const Scenario& s, uint64_t seed, const std::vector<Eigen::Vector2f>& centerline) {
   if (s.scene == SceneKind::highway) return make_highway_traffic(seed, centerline);
   if (s.scene == SceneKind::forest) return make_trail_traffic(seed, centerline);
-  Eigen::Vector2f lo = s.waypoints[0], hi = lo;
-  for (const auto& p : s.waypoints) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  Eigen::Vector2f lo = s.world_waypoints[0], hi = lo;
+  for (const auto& p : s.world_waypoints) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
   return make_city_traffic(seed, s.block, Eigen::Vector2i(std::floor(lo.x()), std::floor(lo.y())),
                            Eigen::Vector2i(std::ceil(hi.x()), std::ceil(hi.y())));
 }
@@ -88,10 +89,11 @@ RealismConfig parse_realism(const std::string& text) {
   return r;
 }
 
-Scenario make_scenario(const SimulationConfig& config) { return make_scenario(config.scenario, config.frames); }
+Scenario make_scenario(const SimulationConfig& config) { return make_scenario(config.scenario, config.frames, config.route); }
 
 Simulator::Simulator(const SimulationConfig& config)
     : config_(config),
+      drive_seed_(config.route == 0 ? config.seed : hash_key(config.seed, 0x2047E, static_cast<uint64_t>(config.route))),
       scenario_(make_scenario(config)),
       realism_(config.realism ? *config.realism : scenario_.realistic ? RealismConfig::all() : RealismConfig::none()),
       sensor_(sensor_model(config.sensor)),
@@ -99,11 +101,11 @@ Simulator::Simulator(const SimulationConfig& config)
   if (!(config.noise >= 0.0) || config.noise > 1.0) throw Error("--noise: must be in [0, 1] m");
   const std::vector<Eigen::Vector2f> centerline = route_centerline(scenario_);
   world_ = build_world(scenario_, config.seed, realism_, centerline);
-  trajectory_ = std::make_unique<Drive>(scenario_, *world_, config.seed);
+  trajectory_ = std::make_unique<Drive>(scenario_, *world_, drive_seed_);
   for (size_t k = 0; k < trajectory_->num_frames(); ++k) poses_.push_back(trajectory_->pose(static_cast<double>(k)));
   if (realism_.moving_objects) {
-    traffic_ = build_traffic(scenario_, config.seed, centerline);
-    add_parked_car_dynamics(*world_, config.seed, static_cast<float>(trajectory_->duration()));
+    traffic_ = build_traffic(scenario_, drive_seed_, centerline);
+    add_parked_car_dynamics(*world_, drive_seed_, static_cast<float>(trajectory_->duration()));
   }
   set_porous_vegetation(*world_, config.seed, realism_.vegetation);
 }

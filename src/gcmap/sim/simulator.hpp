@@ -39,6 +39,9 @@ struct SimulationConfig {
   std::string scenario = "loop";  // loop, small, corridor, city, highway, forest
   int frames = 0;                 // 0: the scenario's default
   uint64_t seed = 1;
+  // Which of the scenario's routes through the world of `seed` (see make_scenario): the noise,
+  // the speed profile and the moving objects differ per route, the static world does not.
+  int route = 0;
   std::string sensor = "hdl64";
   double noise = 0.02;  // range noise sigma in m (at about 20 m with range_noise)
   // Unset: the scenario's default (everything for city, highway and forest; nothing for loop,
@@ -52,7 +55,8 @@ class Simulator {
  public:
   explicit Simulator(const SimulationConfig& config);
   size_t num_frames() const { return poses_.size(); }
-  // World poses of the sensor at each frame's stamp (the start of its sweep).
+  // World poses of the sensor at each frame's stamp (the start of its sweep); the world frame is
+  // the same for every route of a scenario and seed.
   const std::vector<Eigen::Isometry3d>& poses() const { return poses_; }
   // World pose of the sensor `seconds` after the stamp of `frame`.
   Eigen::Isometry3d pose_at(size_t frame, double seconds) const;
@@ -73,6 +77,7 @@ class Simulator {
   void mix_depth_edges(size_t frame, Rays& rays) const;
 
   SimulationConfig config_;
+  uint64_t drive_seed_;  // of what differs per route (noise, speeds, movers); route 0: the seed
   Scenario scenario_;
   RealismConfig realism_;
   SensorModel sensor_;
@@ -84,7 +89,7 @@ class Simulator {
 };
 
 // Writes DIR/velodyne/NNNNNN.bin, poses.txt (sensor frame at each stamp, first pose identity),
-// times.txt, scenario.json and, with the realism that makes them, point_times/NNNNNN.bin (float32
+// poses_world.txt (the same in the world frame that all routes share), times.txt, scenario.json and, with the realism that makes them, point_times/NNNNNN.bin (float32
 // seconds after the stamp, one per point) and labels/NNNNNN.label. Returns the number of points.
 size_t write_simulation(const std::string& dir, const SimulationConfig& config, bool quiet = true);
 

@@ -99,6 +99,8 @@ void write_metadata(const fs::path& dir, const Simulator& sim, const SimulationC
   const Eigen::Isometry3d T0_inv = sim.poses().front().inverse();
   for (const auto& T : sim.poses()) gt.poses.push_back(T0_inv * T);
   write_trajectory((dir / "poses.txt").string(), gt);
+  gt.poses = sim.poses();
+  write_trajectory((dir / "poses_world.txt").string(), gt);
   write_file_atomic((dir / "times.txt").string(), [&](std::ostream& out) {
     char line[32];
     for (size_t k = 0; k < sim.num_frames(); ++k) {
@@ -119,6 +121,10 @@ void write_metadata(const fs::path& dir, const Simulator& sim, const SimulationC
   j["mean_points_per_scan"] = static_cast<double>(total) / sim.num_frames();
   j["motion_distortion"] = r.motion_distortion;
   j["poses"] = "poses.txt: ground-truth sensor poses, KITTI 3x4, first pose identity";
+  if (config.route > 0) {  // route 0 keeps its historical file
+    j["route"] = config.route;
+    j["poses_world"] = "poses_world.txt: the same poses in the world frame shared by every route of this scenario and seed";
+  }
   if (r.any()) {  // the ideal scenarios keep their historical file
     j["realism"] = r.to_string();
     j["stamp"] = "sweep_start";
@@ -212,8 +218,8 @@ size_t write_simulation(const std::string& dir_name, const SimulationConfig& con
         output.bag ? fs::path(simulated_bag_path(dir_name, *output.bag)).filename().string() + " (/points)"
                    : std::string("velodyne/") + (sim.realism().motion_distortion ? ", point_times/" : "");
     spdlog::info("wrote {} scans ({:.0f} points each on average) of the '{}' scenario to {}: {}{}, poses.txt, "
-                 "times.txt, scenario.json", n, static_cast<double>(total) / n, sim.scenario().name, dir_name, scans,
-                 sim.realism().labels ? ", labels/" : "");
+                 "poses_world.txt, times.txt, scenario.json", n, static_cast<double>(total) / n, sim.scenario().name,
+                 dir_name, scans, sim.realism().labels ? ", labels/" : "");
   }
   return total;
 }

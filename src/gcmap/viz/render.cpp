@@ -1,10 +1,13 @@
 #include "gcmap/viz/render.hpp"
 
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/kdtree.hpp"
@@ -23,21 +26,67 @@ struct Grid {
   std::vector<uint32_t> count;
 };
 
-// Serial: the scatter is bound by cache misses, and a fixed order keeps the intensity sums (and
-// the PNG bytes) the same every run.
+// Pixel of every point (kNone outside the picture), in parallel.
+constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
+std::vector<uint32_t> pixel_of_points(const PointCloud& map, const TopDown& v) {
+  std::vector<uint32_t> pixel(map.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, map.size(), 1 << 15), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      const Eigen::Vector3f& p = map.points[i];
+      const double px = (p.x() - v.min_x) * v.pixels_per_m, py = (v.max_y - p.y()) * v.pixels_per_m;
+      pixel[i] = px >= 0 && py >= 0 && px < v.width && py < v.height
+                     ? static_cast<uint32_t>(static_cast<size_t>(py) * v.width + static_cast<size_t>(px))
+                     : kNone;
+    }
+  });
+  return pixel;
+}
+
+// Point indices grouped by band of kBandPixels pixels, in cloud order within each band (a stable
+// counting sort over fixed chunks of points); `start` holds each band's first position.
+constexpr size_t kBandPixels = 1 << 18;  // 2 MB of top + count: a band's grid stays in cache
+std::vector<uint32_t> points_by_band(const std::vector<uint32_t>& pixel, size_t bands, std::vector<size_t>& start) {
+  constexpr size_t kChunk = 1 << 16;
+  const size_t chunks = (pixel.size() + kChunk - 1) / kChunk;
+  std::vector<size_t> at(chunks * bands, 0);  // [chunk][band]: count, then write position
+  const auto each_point = [&](size_t c, auto&& f) {
+    for (size_t i = c * kChunk; i < std::min(pixel.size(), (c + 1) * kChunk); ++i)
+      if (pixel[i] != kNone) f(i, pixel[i] / kBandPixels);
+  };
+  tbb::parallel_for(size_t{0}, chunks, [&](size_t c) { each_point(c, [&](size_t, size_t b) { ++at[c * bands + b]; }); });
+  start.assign(bands + 1, 0);
+  size_t pos = 0;
+  for (size_t b = 0; b < bands; ++b) {
+    start[b] = pos;
+    for (size_t c = 0; c < chunks; ++c) pos += std::exchange(at[c * bands + b], pos);
+  }
+  start[bands] = pos;
+  std::vector<uint32_t> order(pos);
+  tbb::parallel_for(size_t{0}, chunks, [&](size_t c) {
+    each_point(c, [&](size_t i, size_t b) { order[at[c * bands + b]++] = static_cast<uint32_t>(i); });
+  });
+  return order;
+}
+
+// Bands of pixels in parallel, each pixel seeing its points in cloud order: the intensity sums
+// (and the PNG bytes) do not depend on the thread count.
 Grid accumulate(const PointCloud& map, const TopDown& v, bool intensity) {
   const size_t n = static_cast<size_t>(v.width) * v.height;
   Grid g{std::vector<float>(n, -std::numeric_limits<float>::infinity()), std::vector<float>(intensity ? n : 0, 0.0f),
          std::vector<uint32_t>(n, 0)};
-  for (size_t i = 0; i < map.size(); ++i) {
-    const Eigen::Vector3f& p = map.points[i];
-    const double px = (p.x() - v.min_x) * v.pixels_per_m, py = (v.max_y - p.y()) * v.pixels_per_m;
-    if (!(px >= 0 && py >= 0 && px < v.width && py < v.height)) continue;
-    const size_t k = static_cast<size_t>(py) * v.width + static_cast<size_t>(px);
-    g.top[k] = std::max(g.top[k], p.z());
-    ++g.count[k];
-    if (intensity) g.value[k] += map.intensities[i];
-  }
+  if (map.size() >= kNone) throw Error("render: more than 4 billion map points");
+  const std::vector<uint32_t> pixel = pixel_of_points(map, v);
+  const size_t bands = (n + kBandPixels - 1) / kBandPixels;
+  std::vector<size_t> start;
+  const std::vector<uint32_t> order = points_by_band(pixel, bands, start);
+  tbb::parallel_for(size_t{0}, bands, [&](size_t b) {
+    for (size_t j = start[b]; j < start[b + 1]; ++j) {
+      const uint32_t i = order[j], k = pixel[i];
+      g.top[k] = std::max(g.top[k], map.points[i].z());
+      ++g.count[k];
+      if (intensity) g.value[k] += map.intensities[i];
+    }
+  });
   return g;
 }
 
@@ -118,6 +167,19 @@ std::optional<ColourScale> rasterize(Image& img, const RunData& run, const TopDo
   return ColourScale{intensity ? "intensity" : "height [m]", lo, hi};
 }
 
+// x, y extent of the points (min and max are exact in any order: parallel).
+Eigen::AlignedBox2d points_box(const PointCloud& map) {
+  using Box = Eigen::AlignedBox2f;
+  const Box box = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, map.size(), 1 << 15), Box(),
+      [&](const tbb::blocked_range<size_t>& r, Box b) {
+        for (size_t i = r.begin(); i < r.end(); ++i) b.extend(map.points[i].head<2>());
+        return b;
+      },
+      [](Box a, const Box& b) { return a.extend(b); });
+  return box.isEmpty() ? Eigen::AlignedBox2d() : Eigen::AlignedBox2d(box.min().cast<double>(), box.max().cast<double>());
+}
+
 }  // namespace
 
 ColorMode parse_color_mode(const std::string& name) {
@@ -149,8 +211,7 @@ Rgb factor(FactorKind kind) {
 }  // namespace palette
 
 TopDown fit_top_down(const RunData& run, int size) {
-  Eigen::AlignedBox2d box;
-  for (const auto& p : run.map.points) box.extend(p.head<2>().cast<double>());
+  Eigen::AlignedBox2d box = points_box(run.map);
   for (const auto& T : run.trajectory) box.extend(T.translation().head<2>());
   for (const auto& n : run.graph.nodes) box.extend(n.T_out_submap.translation().head<2>());
   if (box.isEmpty()) box = Eigen::AlignedBox2d(Eigen::Vector2d(-50, -50), Eigen::Vector2d(50, 50));

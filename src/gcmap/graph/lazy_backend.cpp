@@ -1,0 +1,86 @@
+#include "gcmap/graph/lazy_backend.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include "gcmap/core/error.hpp"
+
+namespace gcmap {
+
+namespace {
+
+// How far the factor's relative pose moved since it was kept, as a motion of its first pose with
+// the second held (unused part 0; exactly 0 when neither pose changed). A reusable factor's cost
+// depends on T_1^-1 T_0 only, so a motion both poses share leaves its model exact.
+Vector12d motion(const Factor& f, const FactorPoses& poses) {
+  Vector12d d = Vector12d::Zero();
+  const auto& kept = f.kept->poses;
+  if (f.num_keys() == 1) {
+    if (kept[0].matrix() != poses[0]->matrix()) d.head<6>() = se3_log(kept[0].inverse() * *poses[0]);
+  } else if (kept[0].matrix() != poses[0]->matrix() || kept[1].matrix() != poses[1]->matrix()) {
+    const Eigen::Isometry3d T_kept = kept[1].inverse() * kept[0], T_now = poses[1]->inverse() * *poses[0];
+    d.head<6>() = se3_log(T_kept.inverse() * T_now);
+  }
+  return d;
+}
+
+// error(d) ~ e + 2 b^T d + d^T H d (factors.hpp).
+double model_error(const FactorLinearization& lin, const Vector12d& d) { return lin.error + 2.0 * lin.b.dot(d) + d.dot(lin.H * d); }
+
+}  // namespace
+
+LazyBackend::LazyBackend(std::shared_ptr<LinearizationBackend> inner, double threshold)
+    : inner_(std::move(inner)), threshold_(threshold) {
+  if (!inner_) throw Error("LazyBackend: no inner backend");
+}
+
+void LazyBackend::linearize(std::span<Factor* const> factors, std::span<const FactorPoses> poses,
+                            std::span<FactorLinearization> out) {
+  const size_t n = factors.size();
+  modelled_.assign(n, 0);
+  std::vector<Vector12d> d(n);  // per call, small next to one linearization
+  tbb::parallel_for(size_t{0}, n, [&](size_t f) {
+    const Factor& factor = *factors[f];
+    if (!factor.reusable() || !factor.kept) return;
+    d[f] = motion(factor, poses[f]);
+    modelled_[f] = d[f].norm() <= threshold_;
+  });
+  subset_.clear();
+  for (size_t f = 0; f < n; ++f)
+    if (!modelled_[f]) subset_.push_back(f);
+  sub_factors_.resize(subset_.size());
+  sub_poses_.resize(subset_.size());
+  sub_lin_.resize(subset_.size());
+  for (size_t i = 0; i < subset_.size(); ++i) {
+    sub_factors_[i] = factors[subset_[i]];
+    sub_poses_[i] = poses[subset_[i]];
+  }
+  inner_->linearize(sub_factors_, sub_poses_, sub_lin_);
+  tbb::parallel_for(size_t{0}, subset_.size(), [&](size_t i) {
+    Factor& factor = *sub_factors_[i];
+    out[subset_[i]] = sub_lin_[i];
+    if (factor.reusable()) factor.kept = Factor::Kept{{*sub_poses_[i][0], factor.num_keys() > 1 ? *sub_poses_[i][1] : *sub_poses_[i][0]}, sub_lin_[i]};
+  });
+  tbb::parallel_for(size_t{0}, n, [&](size_t f) {
+    if (!modelled_[f]) return;
+    const FactorLinearization& kept = factors[f]->kept->lin;
+    out[f].H = kept.H;
+    out[f].b = kept.b + kept.H * d[f];
+    out[f].error = model_error(kept, d[f]);
+  });
+  linearized_ += subset_.size();
+  reused_ += n - subset_.size();
+}
+
+void LazyBackend::trial_errors(std::span<Factor* const> factors, std::span<const FactorPoses> poses, std::span<double> out) {
+  if (modelled_.size() != factors.size()) throw Error("LazyBackend: trial errors for other factors than were linearized");
+  sub_poses_.resize(subset_.size());
+  sub_errors_.resize(subset_.size());
+  for (size_t i = 0; i < subset_.size(); ++i) sub_poses_[i] = poses[subset_[i]];
+  inner_->trial_errors(sub_factors_, sub_poses_, sub_errors_);
+  for (size_t i = 0; i < subset_.size(); ++i) out[subset_[i]] = sub_errors_[i];
+  tbb::parallel_for(size_t{0}, factors.size(), [&](size_t f) {
+    if (modelled_[f]) out[f] = model_error(factors[f]->kept->lin, motion(*factors[f], poses[f]));
+  });
+}
+
+}  // namespace gcmap

@@ -1,0 +1,46 @@
+#pragma once
+// Re-linearize only what moved (issue: a global optimization per insertion that does not grow with
+// the whole map). Each reusable factor keeps its last linearization and is linearized again only
+// when its relative pose moved more than `threshold` since (the norm of the change's log over
+// [rotation rad, translation m], as iSAM2's relinearizeThreshold); until then its blocks are that
+// quadratic model carried to the current poses, and its trial errors are the model's. Threshold 0
+// re-linearizes every factor whose poses moved at all: the same result as always re-linearizing.
+#include <memory>
+#include <vector>
+
+#include "gcmap/graph/backend.hpp"
+
+namespace gcmap {
+
+class LazyBackend : public LinearizationBackend {
+ public:
+  LazyBackend(std::shared_ptr<LinearizationBackend> inner, double threshold);
+  void linearize(std::span<Factor* const> factors, std::span<const FactorPoses> poses,
+                 std::span<FactorLinearization> out) override;
+  void trial_errors(std::span<Factor* const> factors, std::span<const FactorPoses> poses, std::span<double> out) override;
+  void overlaps(const std::shared_ptr<const PointCloud>& source, std::span<const std::shared_ptr<const GaussianVoxelMap>> targets,
+                std::span<const Eigen::Isometry3d> T_target_source, std::span<double> out) override {
+    inner_->overlaps(source, targets, T_target_source, out);
+  }
+  Device device() const override { return inner_->device(); }
+  std::string name() const override { return inner_->name(); }
+
+  void set_threshold(double threshold) { threshold_ = threshold; }
+  // Factor linearizations run and reused since construction.
+  size_t linearized() const { return linearized_; }
+  size_t reused() const { return reused_; }
+
+ private:
+  std::shared_ptr<LinearizationBackend> inner_;
+  double threshold_;
+  std::vector<char> modelled_;  // per factor of the last linearize(): its kept model stands in
+  // Buffers for the subset handed to the inner backend.
+  std::vector<size_t> subset_;
+  std::vector<Factor*> sub_factors_;
+  std::vector<FactorPoses> sub_poses_;
+  std::vector<FactorLinearization> sub_lin_;
+  std::vector<double> sub_errors_;
+  size_t linearized_ = 0, reused_ = 0;
+};
+
+}  // namespace gcmap

@@ -1,0 +1,168 @@
+// Merging sessions of different routes through one simulated world (ground truth: poses_world).
+#include <algorithm>
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <optional>
+
+#include "gcmap/core/error.hpp"
+#include "gcmap/io/file.hpp"
+#include "gcmap/io/session.hpp"
+#include "gcmap/io/trajectory_io.hpp"
+#include "gcmap/mapping/merge.hpp"
+#include "gcmap/sim/simulator.hpp"
+#include "test_util.hpp"
+
+namespace gcmap {
+namespace {
+
+struct MappedDrive {
+  Session session;
+  std::vector<Eigen::Isometry3d> poses_world;  // ground truth in the world all routes share
+};
+
+// The first frames of a route of the small block, mapped by the pipeline.
+MappedDrive map_route(int route, uint64_t seed, size_t frames) {
+  sim::SimulationConfig sc;
+  sc.scenario = "small";
+  sc.route = route;
+  sc.seed = seed;
+  const sim::Simulator sim(sc);
+  MappingPipeline p{MappingConfig{}};
+  std::vector<double> stamps;
+  for (size_t f = 0; f < frames; ++f) {
+    p.add_scan(sim.scan(f), 0.1 * f);
+    stamps.push_back(0.1 * f);
+  }
+  p.finish();
+  return {make_session(p, stamps), sim.poses()};
+}
+
+MergeInput input(const MappedDrive& d, const std::string& name) {
+  return {name, d.session.submaps, d.session.T_world_submap, d.session.factors, d.session.trajectory};
+}
+
+class MergeOfSmallRoutes : public ::testing::Test {
+ protected:
+  // Routes 0, 1 (the same loop from 20 m further on) and 2 (the next block, from 30 m into route 0,
+  // one street shared in the opposite direction) of one world, and route 0 of another world
+  // (seed 2: other houses on the same streets); each mapped when a test first needs it.
+  static const MappedDrive& drive(int k) {
+    static std::vector<std::optional<MappedDrive>> drives(4);
+    static constexpr std::array<std::pair<int, uint64_t>, 4> kRoutes{{{0, 1}, {1, 1}, {2, 1}, {0, 2}}};
+    if (!drives[k]) drives[k] = map_route(kRoutes[k].first, kRoutes[k].second, k == 3 ? 15 : 35);
+    return *drives[k];
+  }
+  // Frame f of drive k in the frame of drive 0's first pose.
+  static Eigen::Isometry3d truth(int k, size_t f) { return drive(0).poses_world[0].inverse() * drive(k).poses_world[f]; }
+  // Largest error of drive k's merged trajectory against ground truth beyond the error its own
+  // session had (relative to its first frame): what merging added.
+  static std::pair<double, double> trajectory_error(const MergeResult& r, int session, int k) {
+    double t = 0, a = 0;
+    const std::vector<Eigen::Isometry3d>& own = drive(k).session.trajectory;
+    for (size_t f = 0; f < r.trajectories[session].size(); ++f) {
+      const Eigen::Isometry3d own_truth = drive(k).poses_world[0].inverse() * drive(k).poses_world[f];
+      t = std::max(t, test::translation_error(r.trajectories[session][f], truth(k, f)) - test::translation_error(own[f], own_truth));
+      a = std::max(a, test::rotation_error_deg(r.trajectories[session][f], truth(k, f)) - test::rotation_error_deg(own[f], own_truth));
+    }
+    return {t, a};
+  }
+};
+
+TEST_F(MergeOfSmallRoutes, TwoRoutesAreJoinedAtTheirTrueRelativePose) {
+  const MergeResult r = merge_sessions({input(drive(0), "A"), input(drive(1), "B")}, MappingConfig{});
+  ASSERT_TRUE(r.connected[0] && r.connected[1]);
+  EXPECT_EQ(r.placements[1].anchor, 0);
+  EXPECT_GT(r.cross_factors, 0u);
+  EXPECT_LT(test::translation_error(r.trajectories[0][0], Eigen::Isometry3d::Identity()), 1e-9);
+  // The placement of B's first frame, and every frame of both drives after the joint optimization.
+  const double t = test::translation_error(r.trajectories[1][0], truth(1, 0));
+  const double a = test::rotation_error_deg(r.trajectories[1][0], truth(1, 0));
+  std::printf("[ merge    ] B's first pose vs ground truth: %.4f m, %.4f deg; %zu cross-session factors\n", t, a, r.cross_factors);
+  EXPECT_LT(t, 0.05);
+  EXPECT_LT(a, 0.05);
+  for (int k : {0, 1}) {
+    const auto [tk, ak] = trajectory_error(r, k, k);
+    std::printf("[ merge    ] drive %d, worst frame: %.4f m, %.4f deg more than in its own session\n", k, tk, ak);
+    EXPECT_LT(tk, 0.02);
+    EXPECT_LT(ak, 0.02);
+  }
+  ASSERT_EQ(r.T_merged_submap.size(), drive(0).session.submaps.size() + drive(1).session.submaps.size());
+  EXPECT_EQ(r.first_submap[1], static_cast<int>(drive(0).session.submaps.size()));
+}
+
+TEST_F(MergeOfSmallRoutes, ThreeSessionsInOneCallAndAnotherWorldLeftUnconnected) {
+  const MergeResult r = merge_sessions({input(drive(0), "A"), input(drive(3), "D"), input(drive(1), "B"), input(drive(2), "C")},
+                                       MappingConfig{});
+  EXPECT_TRUE(r.connected[0] && r.connected[2] && r.connected[3]);
+  EXPECT_FALSE(r.connected[1]);  // seed 2's houses: no verified place with the others
+  EXPECT_TRUE(r.trajectories[1].empty());
+  EXPECT_EQ(r.first_submap[1], -1);
+  EXPECT_EQ(r.T_merged_submap.size(), drive(0).session.submaps.size() + drive(1).session.submaps.size() +
+                                          drive(2).session.submaps.size());
+  for (auto [session, k] : {std::pair{2, 1}, {3, 2}}) {
+    const auto [t, a] = trajectory_error(r, session, k);
+    std::printf("[ merge    ] drive %d of three, worst frame: %.4f m, %.4f deg more than in its own session\n", k, t, a);
+    EXPECT_LT(t, 0.02);
+    EXPECT_LT(a, 0.02);
+  }
+}
+
+TEST_F(MergeOfSmallRoutes, MisuseIsAnErrorNamingTheSession) {
+  EXPECT_THROW(merge_sessions({input(drive(0), "A")}, MappingConfig{}), Error);
+  MergeInput bare = input(drive(1), "bare");
+  for (Submap& s : bare.submaps) s.descriptors.clear();
+  try {
+    merge_sessions({input(drive(0), "A"), bare}, MappingConfig{});
+    ADD_FAILURE() << "a session without descriptors cannot be placed";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("bare: "), std::string::npos) << e.what();
+  }
+  MappingConfig bad;
+  bad.merge.max_verifications = 0;
+  EXPECT_THROW(merge_sessions({input(drive(0), "A"), input(drive(1), "B")}, bad), Error);
+}
+
+struct CliResult {
+  int code;
+  std::string err;
+};
+CliResult run_cli(const std::string& args, const test::TempDir& dir) {
+  const std::string cmd = std::string(GCMAP_CLI) + " " + args + " >/dev/null 2>" + (dir / "err");
+  const int status = std::system(cmd.c_str());
+  return {WEXITSTATUS(status), read_file(dir / "err")};
+}
+
+TEST_F(MergeOfSmallRoutes, CommandWritesTheMergedSessionAndRefusesBadSessionsInOneLine) {
+  test::TempDir dir;
+  for (int k : {0, 1}) write_session(dir / ("run" + std::to_string(k)) + "/session", drive(k).session);
+  const CliResult ok = run_cli("merge " + (dir / "run0") + " " + (dir / "run1") + " -o " + (dir / "merged"), dir);
+  ASSERT_EQ(ok.code, 0) << ok.err;
+  const Session m = read_session(dir / "merged/session");
+  EXPECT_EQ(m.submaps.size(), drive(0).session.submaps.size() + drive(1).session.submaps.size());
+  EXPECT_EQ(m.trajectory.size(), 70u);
+  const Trajectory t1 = read_trajectory(dir / "merged/trajectory_1.kitti");
+  ASSERT_EQ(t1.size(), 35u);
+  EXPECT_LT(test::translation_error(t1.poses[0], truth(1, 0)), 0.05);
+  EXPECT_TRUE(std::filesystem::exists(dir / "merged/map.ply"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "merged/merge.json"));
+
+  const CliResult missing = run_cli("merge " + (dir / "run0") + " " + (dir / "nothing") + " -o " + (dir / "m2"), dir);
+  EXPECT_EQ(missing.code, 2);
+  EXPECT_NE(missing.err.find("nothing"), std::string::npos) << missing.err;
+  EXPECT_EQ(std::count(missing.err.begin(), missing.err.end(), '\n'), 1) << missing.err;
+
+  std::filesystem::copy(dir / "run1", dir / "newer", std::filesystem::copy_options::recursive);
+  std::string manifest = read_file(dir / "newer/session/manifest.yaml");
+  manifest.replace(manifest.find("version: 1"), 10, "version: 7");
+  std::ofstream(dir / "newer/session/manifest.yaml") << manifest;
+  const CliResult newer = run_cli("merge " + (dir / "run0") + " " + (dir / "newer") + " -o " + (dir / "m3"), dir);
+  EXPECT_EQ(newer.code, 2);
+  EXPECT_NE(newer.err.find("version 7"), std::string::npos) << newer.err;
+  EXPECT_EQ(std::count(newer.err.begin(), newer.err.end(), '\n'), 1) << newer.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "m3/session"));
+}
+
+}  // namespace
+}  // namespace gcmap
