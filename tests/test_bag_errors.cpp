@@ -122,8 +122,8 @@ TEST(BagErrors, ChunkWithBadCrcIsSkipped) {
     std::vector<std::string> got;
     for (BagMessage m; cur->next(m);) got.emplace_back(m.data);
     EXPECT_EQ(got, (std::vector<std::string>{"first-message", "third-message"}));
-    ASSERT_FALSE(bag->warnings().empty());
-    EXPECT_NE(bag->warnings().back().find("bad CRC"), std::string::npos);
+    const auto& w = bag->warnings();
+    EXPECT_EQ(std::count_if(w.begin(), w.end(), [](const std::string& s) { return s.find("bad CRC") != s.npos; }), 1);
   }
 }
 

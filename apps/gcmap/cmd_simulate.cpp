@@ -3,7 +3,7 @@
 #include "commands.hpp"
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/timer.hpp"
-#include "gcmap/sim/simulator.hpp"
+#include "gcmap/sim/writer.hpp"
 
 namespace gcmap::cli {
 
@@ -12,8 +12,25 @@ void add_simulate(CLI::App& app, Runner& run) {
   auto out = std::make_shared<std::string>();
   auto realism = std::make_shared<std::string>();
   auto ideal = std::make_shared<bool>(false);
-  auto* cmd = app.add_subcommand("simulate", "Generate a synthetic LiDAR sequence with exact ground truth (KITTI layout)");
-  cmd->add_option("-o,--output", *out, "Output folder")->required();
+  auto format = std::make_shared<std::string>("kitti"), time_field = std::make_shared<std::string>("ouster"),
+       compression = std::make_shared<std::string>("none");
+  auto* cmd = app.add_subcommand("simulate",
+                                 "Generate a synthetic LiDAR sequence with exact ground truth (KITTI layout or a ROS bag)");
+  cmd->add_option("-o,--output", *out,
+                  "Output folder: velodyne/ (kitti) or the bag drive.mcap, drive/ (db3: rosbag2 folder) or drive.bag, "
+                  "with poses.txt, times.txt, scenario.json (and labels/) beside it")
+      ->required();
+  cmd->add_option("--format", *format,
+                  "kitti, mcap, db3 or bag (ROS 1): a bag holds /points (sensor_msgs/PointCloud2, header stamps as in "
+                  "times.txt)")
+      ->capture_default_str();
+  auto* time_opt = cmd->add_option("--time-field", *time_field,
+                  "Bags, with motion distortion: the per-point time as ouster (t, uint32 ns), velodyne (time, float32 s), "
+                  "hesai (timestamp, float64 absolute s) or livox (offset_time, uint32 ns)")
+      ->capture_default_str();
+  auto* compression_opt =
+      cmd->add_option("--compression", *compression, "Bag chunks: none; mcap: zstd or lz4; bag: bz2 or lz4")
+          ->capture_default_str();
   cmd->add_option("--scenario", opt->scenario,
                   "loop, small, corridor (ideal by default), city, highway, forest (realistic by default)")
       ->capture_default_str();
@@ -32,14 +49,22 @@ void add_simulate(CLI::App& app, Runner& run) {
   cmd->add_option("--realism", *realism,
                   "all, none, or the keys to enable: motion_distortion, moving_objects, labels, calibration, "
                   "range_noise, dropouts, mixed_pixels, spurious, curbs, vegetation (default: the scenario's)");
-  cmd->callback([opt, out, realism, ideal, &run] {
-    run = [opt, out, realism, ideal] {
+  cmd->callback([=, &run] {
+    run = [=] {
       if (*ideal && !realism->empty()) throw Error("--ideal and --realism: give one of them");
       if (*ideal) opt->realism = sim::RealismConfig::none();
       if (!realism->empty()) opt->realism = sim::parse_realism(*realism);
+      sim::OutputOptions output;
+      output.bag = sim::parse_output_format(*format, "--format");
+      if (!output.bag && (time_opt->count() || compression_opt->count()))
+        throw Error("--time-field and --compression apply to bags (--format mcap, db3 or bag), not to kitti");
+      output.time = sim::parse_time_field(*time_field, "--time-field");
+      output.compression = sim::parse_compression(*compression, output.bag, "--compression");
       Stopwatch w;
-      const size_t points = sim::write_simulation(*out, *opt, false);
-      std::cout << "{\"output\":\"" << *out << "\",\"points\":" << points << ",\"seconds\":" << w.ms() / 1000.0 << "}\n";
+      const size_t points = sim::write_simulation(*out, *opt, output, false);
+      const std::string bag = output.bag ? ",\"bag\":\"" + sim::simulated_bag_path(*out, *output.bag) + "\"" : "";
+      std::cout << "{\"output\":\"" << *out << "\"" << bag << ",\"points\":" << points
+                << ",\"seconds\":" << w.ms() / 1000.0 << "}\n";
       return 0;
     };
   });

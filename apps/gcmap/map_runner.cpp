@@ -94,7 +94,8 @@ Input open_input(const MapRunOptions& o) {
   return {std::move(folder), kitti, o.start};
 }
 
-void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapRunOptions& o, int signal) {
+void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapRunOptions& o, int signal,
+                   const std::vector<std::string>& input_warnings) {
   write_folder_contents_atomic(o.output, [&](const std::string& staging) {
     const fs::path out(staging);
     Trajectory traj;
@@ -116,6 +117,9 @@ void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapR
     stats["peak_rss_mb"] = peak_rss_bytes() / 1e6;
     stats["partial"] = signal != 0;
     if (signal) stats["interrupted_by"] = signal == SIGINT ? "SIGINT" : "SIGTERM";
+    Json warnings = Json::array();  // e.g. a truncated bag: mapped up to the damage
+    for (const std::string& w : input_warnings) warnings.push_back(w);
+    stats["input_warnings"] = warnings;
     write_file_atomic((out / "stats.json").string(), [&](std::ostream& s) { s << stats.dump() << "\n"; });
     write_file_atomic((out / "config.yaml").string(), [&](std::ostream& s) { s << o.config.to_yaml(); });
     write_session((out / "session").string(), pipeline, traj.stamps);
@@ -166,7 +170,7 @@ MapRunResult run_mapping(const MapRunOptions& o) {
     }
     pipeline.finish(signal ? std::optional<int>(g_signals > 1 ? 0 : 5) : std::nullopt);
   }
-  write_outputs(pipeline, input.frame_offset, o, signal);
+  write_outputs(pipeline, input.frame_offset, o, signal, source.warnings());
 
   MapRunResult r;
   r.frames = pipeline.num_frames();

@@ -2,6 +2,8 @@
 // A recording as a sequence of scans (a sequence folder, a bag), read by the mapping pipeline.
 #include <functional>
 #include <optional>
+#include <string>
+#include <vector>
 
 #include "gcmap/core/point_cloud.hpp"
 
@@ -21,6 +23,9 @@ class ScanSource {
   virtual std::optional<ScanRecord> next() = 0;
   // The number of scans when known in advance (progress and ETA), else 0.
   virtual size_t size_hint() const { return 0; }
+  // What the input lacked (a truncated file, undecodable messages), one line each, for the run's
+  // report; complete once next() has returned nullopt.
+  virtual std::vector<std::string> warnings() const { return {}; }
 };
 
 }  // namespace gcmap

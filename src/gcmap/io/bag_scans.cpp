@@ -193,4 +193,12 @@ size_t BagScanRecords::size_hint() const {
   return limit_ ? std::min(n, limit_) : n;
 }
 
+std::vector<std::string> BagScanRecords::warnings() const {
+  std::vector<std::string> w = source_.bag().warnings();
+  if (source_.skipped())
+    w.push_back(source_.bag().path() + ": " + std::to_string(source_.skipped()) + " messages of " + source_.topic() +
+                " could not be decoded and were skipped");
+  return w;
+}
+
 }  // namespace gcmap

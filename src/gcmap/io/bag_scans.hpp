@@ -6,7 +6,8 @@
 // seconds after it (all >= 0), whatever the driver's convention; otherwise the header stamp.
 // Per-point time fields recognized (first present wins):
 //   time_sec + time_nsec  absolute (Luminar)
-//   timestamp             float64 absolute s (Hesai, RoboSense); > 1e15: absolute ns (Livox); < 1e6: s after the header
+//   timestamp             float64 absolute s (Hesai, RoboSense); > 1e15: absolute ns (Livox); s after the header
+//                         when the first point's value is nearer zero than the header stamp
 //   t                     uint32 ns after the header stamp (Ouster); a float type: s
 //   time                  float32 s after the header stamp (Velodyne); an integer type: ns
 //   offset_time           uint32 ns after the header stamp (Livox); a float type: s
@@ -84,6 +85,8 @@ class BagScanRecords : public ScanSource {
   BagScanRecords(const std::string& path, const BagScanOptions& options, size_t skip = 0, size_t limit = 0);
   std::optional<ScanRecord> next() override;
   size_t size_hint() const override;
+  // The bag reader's warnings, and how many messages could not be decoded.
+  std::vector<std::string> warnings() const override;
   const BagScanSource& bag() const { return source_; }
 
  private:

@@ -56,15 +56,20 @@ struct TimeSpec {
   double scale = 1;  // to seconds
 };
 
-// `first` is a point of the message, used to tell absolute from relative `timestamp`.
+// Divided, not multiplied by 1e-9: the nearest double, as a stamp read from text is.
+double ns_to_s(int64_t ns) { return double(ns) / 1e9; }
+
+// `first` is a point of the message: its `timestamp` is absolute when nearer the header stamp than
+// zero (this also holds for simulated clocks that start at 0).
 TimeSpec find_time(const PointCloud2Msg& m, const char* first, const std::string& where) {
   TimeSpec s;
   if ((s.a = find_field(m, "time_sec", where)) && (s.b = find_field(m, "time_nsec", where))) {
     s.kind = TimeKind::sec_nsec;
   } else if ((s.a = find_field(m, "timestamp", where))) {
     const double v = first ? s.a(first) : 0;
-    s.kind = std::abs(v) > 1e6 ? TimeKind::absolute : TimeKind::relative;
     s.scale = std::abs(v) > 1e15 ? 1e-9 : 1;
+    const bool near_header = std::abs(v * s.scale - ns_to_s(m.stamp_ns)) < std::abs(v * s.scale);
+    s.kind = near_header ? TimeKind::absolute : TimeKind::relative;
   } else {
     for (const char* name : {"t", "time", "offset_time"}) {
       if (!(s.a = find_field(m, name, where))) continue;
@@ -107,7 +112,7 @@ BagScan pointcloud2_to_scan(const PointCloud2Msg& m, const std::string& where) {
   const TimeSpec time = find_time(m, first, where);
 
   BagScan scan;
-  scan.header_stamp = double(m.stamp_ns) * 1e-9;
+  scan.header_stamp = ns_to_s(m.stamp_ns);
   scan.stamp = scan.header_stamp;
   const size_t n = size_t(m.height) * m.width;
   scan.cloud.points.reserve(n);
@@ -137,7 +142,7 @@ BagScan pointcloud2_to_scan(const PointCloud2Msg& m, const std::string& where) {
 
 BagScan livox_to_scan(const LivoxMsg& m) {
   BagScan scan;
-  scan.header_stamp = double(m.stamp_ns) * 1e-9;
+  scan.header_stamp = ns_to_s(m.stamp_ns);
   scan.stamp = scan.header_stamp;
   std::vector<double> rel;
   rel.reserve(m.points.size());

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <fstream>
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/io/bag_chunks.hpp"
@@ -139,18 +140,27 @@ class Db3Reader : public BagReader {
       f.fail("not an sqlite3 database");
   }
 
-  // sqlite reads the missing end of a cut file as zeros: compare the size the header declares.
+  // A cut file: sqlite reads its missing end as zeros or calls it malformed. The header's page size
+  // (offset 16) and page count (offset 28, valid when the change counters at 24 and 92 agree) tell.
   static void check_size(DbFile& f) {
+    std::string head = f.bytes.substr(0, 100);
     uint64_t actual = f.bytes.size();
     if (f.bytes.empty()) {
       std::error_code ec;
       if (fs::exists(f.name + "-wal", ec)) return;  // pages may live in the write-ahead log
       actual = fs::file_size(f.name, ec);
+      std::ifstream in(f.name, std::ios::binary);
+      head.resize(100);
+      head.resize(in.read(head.data(), 100) ? 100 : 0);
     }
-    Statement pages = f.prepare("PRAGMA page_count"), size = f.prepare("PRAGMA page_size");
-    if (f.step(pages.get()) != SQLITE_ROW || f.step(size.get()) != SQLITE_ROW) f.fail("corrupt database");
-    const uint64_t declared = uint64_t(sqlite3_column_int64(pages.get(), 0)) * uint64_t(sqlite3_column_int64(size.get(), 0));
-    if (declared > actual)
+    if (head.size() < 100) return;  // sqlite tells what is wrong with it
+    auto be = [&](size_t at, int n) {
+      uint64_t v = 0;
+      for (int k = 0; k < n; ++k) v = v << 8 | uint8_t(head[at + k]);
+      return v;
+    };
+    const uint64_t page = be(16, 2) == 1 ? 65536 : be(16, 2), declared = be(28, 4) * page;
+    if (be(24, 4) == be(92, 4) && declared > actual)
       throw Error(f.name + ": truncated database (" + std::to_string(actual) + " of " + std::to_string(declared) + " bytes)");
   }
 

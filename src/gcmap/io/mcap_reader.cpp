@@ -157,6 +157,7 @@ class McapReader : public BagReader {
   std::vector<ChannelInfo> infos_;
   std::vector<ChunkRef> chunks_;
   uint64_t stats_chunks_ = 0;
+  bool no_footer_ = false;
 };
 
 void McapReader::parse_summary_record(uint8_t op, std::string_view body, const std::string& at, bool& have_stats) {
@@ -201,7 +202,7 @@ bool McapReader::read_summary() {
   src_->read(footer_at, kFooterRecord + kMagic.size(), tail);
   ByteReader r(tail, where(footer_at));
   if (tail.substr(kFooterRecord) != kMagic || r.u8() != kFooter || r.u64() != 20) {
-    warn(path_ + ": no MCAP footer (truncated or still being written): read up to the damage");
+    no_footer_ = true;  // scan_linear() warns, once: where the file is cut, or that the footer is missing
     return false;
   }
   const uint64_t start = r.u64(), offsets = r.u64();
@@ -258,9 +259,11 @@ void McapReader::scan_linear() {
   const uint64_t size = src_->size();
   uint64_t pos = kMagic.size();
   std::string rec;
+  bool cut = false;  // warned where
   while (true) {
     if (size - pos < 9) {
-      if (size != pos) warn(path_ + ": truncated after offset " + std::to_string(pos));
+      cut = size != pos;
+      if (cut) warn(path_ + ": truncated after offset " + std::to_string(pos));
       break;
     }
     src_->read(pos, 9, rec);
@@ -269,6 +272,7 @@ void McapReader::scan_linear() {
     const uint64_t len = h.u64();
     if (len > size - pos - 9) {
       warn(path_ + ": truncated in the record at offset " + std::to_string(pos) + ": read what precedes it");
+      cut = true;
       break;
     }
     if (op == kDataEnd || op == kFooter) break;
@@ -292,6 +296,8 @@ void McapReader::scan_linear() {
     pos += 9 + len;
   }
   for (auto& [id, c] : channels_) c.count = counts.count(id) ? counts[id] : 0;
+  if (no_footer_ && !cut)
+    warn(path_ + ": no MCAP footer (truncated or still being written): read up to the end");
 }
 
 }  // namespace

@@ -86,10 +86,8 @@ class Ros1Reader : public BagReader {
         indexed = false;
       }
     }
-    if (!indexed) {
-      warn(path_ + ": no valid index (bag not closed or truncated): reading every chunk");
-      scan_linear(first);
-    }
+    if (!indexed && !scan_linear(first))  // one warning: where the file is cut, else that the index is missing
+      warn(path_ + ": no valid index (bag not closed): read every chunk");
     for (auto& [id, c] : connections_) infos_.push_back(c);
     topics_ = group_topics(infos_);
   }
@@ -162,7 +160,8 @@ class Ros1Reader : public BagReader {
   }
 
   void read_index(uint64_t pos);
-  void scan_linear(uint64_t pos);
+  // Indexes every chunk from `pos`; true, with a warning, when the file is cut.
+  bool scan_linear(uint64_t pos);
   void scan_chunk(uint64_t offset, bool& any);
 
   std::unique_ptr<ByteSource> src_;
@@ -226,7 +225,7 @@ void Ros1Reader::scan_chunk(uint64_t offset, bool& any) {
   chunks_.push_back(std::move(c));
 }
 
-void Ros1Reader::scan_linear(uint64_t pos) {
+bool Ros1Reader::scan_linear(uint64_t pos) {
   chunks_.clear();
   connections_.clear();
   start_ns_ = end_ns_ = 0;
@@ -237,8 +236,9 @@ void Ros1Reader::scan_linear(uint64_t pos) {
     try {
       len = read_record(pos, buf);
     } catch (const Error&) {
-      warn(path_ + ": truncated in the record at offset " + std::to_string(pos) + ": read what precedes it");
-      break;
+      warn(path_ + ": truncated in the record at offset " + std::to_string(pos) +
+           " (no valid index): read what precedes it");
+      return true;
     }
     ByteReader r(buf, where(pos));
     const Record rec = parse_record(r, where(pos));
@@ -246,6 +246,7 @@ void Ros1Reader::scan_linear(uint64_t pos) {
     if (rec.op() == kConnection) add_connection(rec);
     pos += len;
   }
+  return false;
 }
 
 }  // namespace

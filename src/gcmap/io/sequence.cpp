@@ -8,6 +8,7 @@
 #include <fstream>
 
 #include "gcmap/core/error.hpp"
+#include "gcmap/io/bag_reader.hpp"
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 
@@ -33,7 +34,12 @@ std::vector<std::string> list_scan_files(const std::string& dir) {
   }
   if (ec) throw Error(dir + ": cannot list (" + ec.message() + ")");
   std::sort(files.begin(), files.end());
-  if (files.empty()) throw Error(root.string() + ": no .bin, .pcd or .ply scans");
+  if (files.empty()) {
+    std::string bags;  // e.g. what `gcmap simulate --format mcap` writes
+    for (const auto& e : fs::directory_iterator(dir, ec))
+      if (is_bag_path(e.path().string())) bags += (bags.empty() ? "" : ", ") + e.path().string();
+    throw Error(root.string() + ": no .bin, .pcd or .ply scans" + (bags.empty() ? "" : " (bags: " + bags + ")"));
+  }
   return files;
 }
 

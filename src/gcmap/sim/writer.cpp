@@ -1,4 +1,6 @@
-// write_simulation: a simulated sequence on disk in the KITTI layout.
+// write_simulation: a simulated sequence on disk in the KITTI layout or as a ROS bag.
+#include "gcmap/sim/writer.hpp"
+
 #include <spdlog/spdlog.h>
 #include <tbb/parallel_for.h>
 #include <unistd.h>
@@ -11,7 +13,6 @@
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/json.hpp"
 #include "gcmap/io/trajectory_io.hpp"
-#include "gcmap/sim/simulator.hpp"
 
 namespace gcmap::sim {
 
@@ -26,7 +27,16 @@ void write_binary(const fs::path& path, const std::vector<T>& data) {
   });
 }
 
-void write_scan(const fs::path& dir, size_t k, const PointCloud& c) {
+// k / 10 rounded once, as times.txt reads back and as a bag's ns stamp divided by 1e9 does.
+double frame_stamp(size_t k) { return static_cast<double>(k) / 10.0; }
+
+void write_labels(const fs::path& dir, size_t k, const PointCloud& c) {
+  char name[32];
+  std::snprintf(name, sizeof(name), "%06zu.label", k);
+  if (c.has_labels()) write_binary(dir / "labels" / name, c.labels);
+}
+
+void write_kitti_scan(const fs::path& dir, size_t k, const PointCloud& c) {
   char name[32];
   std::vector<float> buf(c.size() * 4);
   for (size_t i = 0; i < c.size(); ++i) {
@@ -38,11 +48,52 @@ void write_scan(const fs::path& dir, size_t k, const PointCloud& c) {
   std::snprintf(name, sizeof(name), "%06zu.bin", k);
   write_binary(dir / "velodyne" / name, buf);
   if (c.has_times()) write_binary(dir / "point_times" / name, c.times);  // float32, s after the stamp
-  std::snprintf(name, sizeof(name), "%06zu.label", k);
-  if (c.has_labels()) write_binary(dir / "labels" / name, c.labels);
+  write_labels(dir, k, c);
 }
 
-void write_metadata(const fs::path& dir, const Simulator& sim, const SimulationConfig& config, size_t total) {
+// Where the frames go: the KITTI layout, or the bag with the labels beside it.
+class FrameSink {
+ public:
+  FrameSink(const fs::path& dir, const Simulator& sim, const OutputOptions& out) : dir_(dir) {
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (!ec && !out.bag) fs::create_directories(dir / "velodyne", ec);
+    if (!ec && !out.bag && sim.realism().motion_distortion) fs::create_directories(dir / "point_times", ec);
+    if (!ec && sim.realism().labels) fs::create_directories(dir / "labels", ec);
+    if (ec) throw Error(dir.string() + ": cannot create output folder (" + ec.message() + ")");
+    if (!out.bag) return;
+    CloudLayout layout;
+    layout.time = sim.realism().motion_distortion ? out.time : PointTimeConvention::none;
+    BagWriterOptions wo;
+    wo.compression = out.compression;
+    bag_.emplace(simulated_bag_path(dir.string(), *out.bag), *out.bag, layout, wo);
+  }
+  void write(size_t k, const PointCloud& c) {
+    if (!bag_) return write_kitti_scan(dir_, k, c);
+    bag_->write(c, frame_stamp(k));
+    write_labels(dir_, k, c);
+  }
+  void close() {
+    if (bag_) bag_->close();
+  }
+
+ private:
+  fs::path dir_;
+  std::optional<ScanBagWriter> bag_;
+};
+
+const char* time_field_note(PointTimeConvention t) {
+  switch (t) {
+    case PointTimeConvention::ouster_t: return "t: uint32 ns after the header stamp (Ouster)";
+    case PointTimeConvention::velodyne_time: return "time: float32 s after the header stamp (Velodyne)";
+    case PointTimeConvention::hesai_timestamp: return "timestamp: float64 s, absolute (Hesai)";
+    case PointTimeConvention::livox_offset_time: return "offset_time: uint32 ns after the header stamp (Livox)";
+    default: return "none";
+  }
+}
+
+void write_metadata(const fs::path& dir, const Simulator& sim, const SimulationConfig& config, const OutputOptions& out,
+                    size_t total) {
   Trajectory gt;
   gt.format = TrajectoryFormat::kitti;
   const Eigen::Isometry3d T0_inv = sim.poses().front().inverse();
@@ -53,7 +104,7 @@ void write_metadata(const fs::path& dir, const Simulator& sim, const SimulationC
   write_file_atomic((dir / "times.txt").string(), [&](std::ostream& out) {
     char line[32];
     for (size_t k = 0; k < sim.num_frames(); ++k) {
-      std::snprintf(line, sizeof(line), "%.6e\n", 0.1 * k);
+      std::snprintf(line, sizeof(line), "%.6e\n", frame_stamp(k));
       out << line;
     }
   });
@@ -78,9 +129,15 @@ void write_metadata(const fs::path& dir, const Simulator& sim, const SimulationC
     j["realism"] = r.to_string();
     j["stamp"] = "sweep_start";
     j["stamps"] = "times.txt and poses.txt are at the start of each sweep; points are in the sensor frame at their own firing time";
-    if (r.motion_distortion) j["point_times"] = "point_times/NNNNNN.bin: float32 little-endian, one per point, seconds after the stamp, in [0, 0.1)";
+    if (r.motion_distortion && !out.bag) j["point_times"] = "point_times/NNNNNN.bin: float32 little-endian, one per point, seconds after the stamp, in [0, 0.1)";
     if (r.labels) j["labels"] = "labels/NNNNNN.label: uint32 per point, class (SemanticKITTI) | instance << 16; moving classes 252-259";
     if (r.moving_objects) j["moving_objects"] = sim.traffic().size();
+  }
+  if (out.bag) {
+    j["bag"] = fs::path(simulated_bag_path(dir.string(), *out.bag)).filename().string();
+    j["bag_format"] = bag_format_name(*out.bag);
+    j["topic"] = "/points: sensor_msgs/PointCloud2, header stamps as in times.txt, recorded at the end of each sweep";
+    j["point_time_field"] = r.motion_distortion ? time_field_note(out.time) : "none";
   }
   write_file_atomic((dir / "scenario.json").string(), [&](std::ostream& out) { out << j.dump() << "\n"; });
 }
@@ -97,14 +154,48 @@ void report_progress(size_t done, size_t total, double seconds, bool tty) {
 
 }  // namespace
 
+std::optional<BagFormat> parse_output_format(const std::string& text, const std::string& key) {
+  if (text == "kitti") return std::nullopt;
+  if (text == "mcap") return BagFormat::mcap;
+  if (text == "db3") return BagFormat::db3;
+  if (text == "bag") return BagFormat::ros1;
+  throw Error(key + ": expected kitti, mcap, db3 or bag, got '" + text + "'");
+}
+
+PointTimeConvention parse_time_field(const std::string& text, const std::string& key) {
+  if (text == "ouster") return PointTimeConvention::ouster_t;
+  if (text == "velodyne") return PointTimeConvention::velodyne_time;
+  if (text == "hesai") return PointTimeConvention::hesai_timestamp;
+  if (text == "livox") return PointTimeConvention::livox_offset_time;
+  throw Error(key + ": expected ouster, velodyne, hesai or livox, got '" + text + "'");
+}
+
+Compression parse_compression(const std::string& text, std::optional<BagFormat> bag, const std::string& key) {
+  const Compression c = text == "none" ? Compression::none
+                        : text == "zstd" ? Compression::zstd
+                        : text == "lz4"  ? Compression::lz4
+                        : text == "bz2"  ? Compression::bz2
+                                         : throw Error(key + ": expected none, zstd, lz4 or bz2, got '" + text + "'");
+  const bool ok = c == Compression::none || (bag == BagFormat::mcap && c != Compression::bz2) ||
+                  (bag == BagFormat::ros1 && c != Compression::zstd);
+  if (!ok) throw Error(key + " " + text + ": mcap takes zstd or lz4, bag takes bz2 or lz4, kitti and db3 none");
+  return c;
+}
+
+std::string simulated_bag_path(const std::string& dir, BagFormat format) {
+  const char* name = format == BagFormat::mcap ? "drive.mcap" : format == BagFormat::ros1 ? "drive.bag" : "drive";
+  return (fs::path(dir) / name).string();
+}
+
 size_t write_simulation(const std::string& dir_name, const SimulationConfig& config, bool quiet) {
+  return write_simulation(dir_name, config, OutputOptions{}, quiet);
+}
+
+size_t write_simulation(const std::string& dir_name, const SimulationConfig& config, const OutputOptions& output,
+                        bool quiet) {
   Simulator sim(config);
   const fs::path dir(dir_name);
-  std::error_code ec;
-  fs::create_directories(dir / "velodyne", ec);
-  if (!ec && sim.realism().motion_distortion) fs::create_directories(dir / "point_times", ec);
-  if (!ec && sim.realism().labels) fs::create_directories(dir / "labels", ec);
-  if (ec) throw Error(dir_name + ": cannot create output folder (" + ec.message() + ")");
+  FrameSink sink(dir, sim, output);
   // Frames in parallel in small batches (each scan is parallel inside too), written in order.
   const size_t batch = 8, n = sim.num_frames();
   const bool tty = !quiet && isatty(2);
@@ -115,16 +206,20 @@ size_t write_simulation(const std::string& dir_name, const SimulationConfig& con
     const size_t count = std::min(batch, n - start);
     tbb::parallel_for(size_t(0), count, [&](size_t k) { clouds[k] = sim.scan(start + k); });
     for (size_t k = 0; k < count; ++k) {
-      write_scan(dir, start + k, clouds[k]);
+      sink.write(start + k, clouds[k]);
       total += clouds[k].size();
     }
     if (!quiet) report_progress(start + count, n, watch.ms() / 1000.0, tty);
   }
-  write_metadata(dir, sim, config, total);
+  sink.close();
+  write_metadata(dir, sim, config, output, total);
   if (!quiet) {
-    spdlog::info("wrote {} scans ({:.0f} points each on average) of the '{}' scenario to {}: velodyne/{}{}, poses.txt, "
-                 "poses_world.txt, times.txt, scenario.json", n, static_cast<double>(total) / n, sim.scenario().name, dir_name,
-                 sim.realism().motion_distortion ? ", point_times/" : "", sim.realism().labels ? ", labels/" : "");
+    const std::string scans =
+        output.bag ? fs::path(simulated_bag_path(dir_name, *output.bag)).filename().string() + " (/points)"
+                   : std::string("velodyne/") + (sim.realism().motion_distortion ? ", point_times/" : "");
+    spdlog::info("wrote {} scans ({:.0f} points each on average) of the '{}' scenario to {}: {}{}, poses.txt, "
+                 "poses_world.txt, times.txt, scenario.json", n, static_cast<double>(total) / n, sim.scenario().name,
+                 dir_name, scans, sim.realism().labels ? ", labels/" : "");
   }
   return total;
 }

@@ -1,0 +1,37 @@
+#pragma once
+// A simulated drive on disk: the KITTI layout, or a ROS bag with the ground truth beside it, so that
+// every bag reader is tested on data the project makes itself.
+#include <optional>
+#include <string>
+
+#include "gcmap/io/bag_scans.hpp"
+#include "gcmap/sim/simulator.hpp"
+
+namespace gcmap::sim {
+
+struct OutputOptions {
+  std::optional<BagFormat> bag;  // none: the KITTI layout
+  // The per-point time field of the bag's PointCloud2 (when the drive has motion distortion):
+  // ouster_t, velodyne_time, hesai_timestamp or livox_offset_time.
+  PointTimeConvention time = PointTimeConvention::ouster_t;
+  Compression compression = Compression::none;  // mcap: zstd, lz4; ros1: bz2, lz4
+};
+
+// "kitti", "mcap", "db3" or "bag" (ROS 1); Error naming `key` otherwise.
+std::optional<BagFormat> parse_output_format(const std::string& text, const std::string& key);
+// "ouster", "velodyne", "hesai" or "livox".
+PointTimeConvention parse_time_field(const std::string& text, const std::string& key);
+// "none", "zstd", "lz4" or "bz2", checked against what `bag` can hold.
+Compression parse_compression(const std::string& text, std::optional<BagFormat> bag, const std::string& key);
+
+// The bag inside DIR: DIR/drive.mcap, DIR/drive.bag, or the rosbag2 folder DIR/drive.
+std::string simulated_bag_path(const std::string& dir, BagFormat format);
+
+// As write_simulation (simulator.hpp) for the KITTI layout. For a bag: one /points topic of
+// sensor_msgs/PointCloud2 (x, y, z, intensity float32 and the chosen time field), header stamps the
+// stamps of times.txt (the start of each sweep, 0.1 s apart from 0), recorded at the end of each
+// sweep; poses.txt, times.txt, scenario.json and labels/ in DIR beside the bag.
+size_t write_simulation(const std::string& dir, const SimulationConfig& config, const OutputOptions& output,
+                        bool quiet = true);
+
+}  // namespace gcmap::sim
