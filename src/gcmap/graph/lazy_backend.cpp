@@ -24,7 +24,9 @@ Vector12d motion(const Factor& f, const FactorPoses& poses) {
 }
 
 // error(d) ~ e + 2 b^T d + d^T H d (factors.hpp).
-double model_error(const FactorLinearization& lin, const Vector12d& d) { return lin.error + 2.0 * lin.b.dot(d) + d.dot(lin.H * d); }
+double model_error(const FactorLinearization& lin, const Vector12d& d) {
+  return lin.error + 2.0 * lin.b.dot(d) + d.dot(lin.H * d);
+}
 
 }  // namespace
 
@@ -37,7 +39,8 @@ void LazyBackend::linearize(std::span<Factor* const> factors, std::span<const Fa
                             std::span<FactorLinearization> out) {
   const size_t n = factors.size();
   modelled_.assign(n, 0);
-  std::vector<Vector12d> d(n);  // per call, small next to one linearization
+  std::vector<Vector12d>& d = motion_;
+  d.resize(n);
   tbb::parallel_for(size_t{0}, n, [&](size_t f) {
     const Factor& factor = *factors[f];
     if (!factor.reusable() || !factor.kept) return;
@@ -58,7 +61,9 @@ void LazyBackend::linearize(std::span<Factor* const> factors, std::span<const Fa
   tbb::parallel_for(size_t{0}, subset_.size(), [&](size_t i) {
     Factor& factor = *sub_factors_[i];
     out[subset_[i]] = sub_lin_[i];
-    if (factor.reusable()) factor.kept = Factor::Kept{{*sub_poses_[i][0], factor.num_keys() > 1 ? *sub_poses_[i][1] : *sub_poses_[i][0]}, sub_lin_[i]};
+    if (!factor.reusable()) return;
+    const FactorPoses& at = sub_poses_[i];
+    factor.kept = Factor::Kept{{*at[0], factor.num_keys() > 1 ? *at[1] : *at[0]}, sub_lin_[i]};
   });
   tbb::parallel_for(size_t{0}, n, [&](size_t f) {
     if (!modelled_[f]) return;

@@ -34,6 +34,7 @@ class LazyBackend : public LinearizationBackend {
   std::shared_ptr<LinearizationBackend> inner_;
   double threshold_;
   std::vector<char> modelled_;  // per factor of the last linearize(): its kept model stands in
+  std::vector<Vector12d> motion_;  // per factor: its relative-pose change since it was kept
   // Buffers for the subset handed to the inner backend.
   std::vector<size_t> subset_;
   std::vector<Factor*> sub_factors_;

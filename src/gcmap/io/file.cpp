@@ -1,5 +1,6 @@
 #include "gcmap/io/file.hpp"
 
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -64,23 +65,32 @@ void write_file_atomic(const std::string& path, const std::function<void(std::os
   }
 }
 
-namespace {
-
 namespace fs = std::filesystem;
 
-// Moves every entry of `staging` over its namesake in `dir`; a folder is swapped by two renames.
+void replace_folder(const std::string& from, const std::string& to) {
+  std::error_code ec;
+  if (!fs::exists(to)) {
+    fs::rename(from, to);
+    return;
+  }
+  if (::renameat2(AT_FDCWD, from.c_str(), AT_FDCWD, to.c_str(), RENAME_EXCHANGE) == 0) {
+    fs::remove_all(from, ec);  // now the old folder
+    return;
+  }
+  const std::string old = to + ".old." + std::to_string(::getpid());
+  fs::rename(to, old);
+  fs::rename(from, to);
+  fs::remove_all(old, ec);
+}
+
+namespace {
+
+// Moves every entry of `staging` over its namesake in `dir`.
 void move_entries(const fs::path& staging, const fs::path& dir) {
-  const std::string pid = std::to_string(::getpid());
   for (const auto& entry : fs::directory_iterator(staging)) {
     const fs::path target = dir / entry.path().filename();
-    if (entry.is_directory() && fs::exists(target)) {
-      const fs::path old = target.string() + ".old." + pid;
-      fs::rename(target, old);
-      fs::rename(entry.path(), target);
-      fs::remove_all(old);
-    } else {
-      fs::rename(entry.path(), target);
-    }
+    if (entry.is_directory()) replace_folder(entry.path().string(), target.string());
+    else fs::rename(entry.path(), target);
   }
 }
 

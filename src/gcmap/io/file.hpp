@@ -12,6 +12,11 @@ std::string read_file(const std::string& path);
 // see a half-written file. Throws Error("PATH: ...") on failure and removes the temporary.
 void write_file_atomic(const std::string& path, const std::function<void(std::ostream&)>& write);
 
+// Moves the folder `from` to `to`, replacing a folder already there: one atomic exchange where the
+// file system can (Linux renameat2), so there is no instant without `to`; else two renames. The old
+// folder is removed. Throws std::filesystem::filesystem_error.
+void replace_folder(const std::string& from, const std::string& to);
+
 // Writes a set of outputs into a staging folder inside `dir` and moves them into `dir` only once all
 // of them were written, so a full disk or a failing writer leaves the previous set whole (files and
 // folders alike). `write` gets the staging folder; errors name the output's final path.

@@ -1,6 +1,5 @@
 #include "gcmap/io/session.hpp"
 
-#include <fcntl.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
@@ -198,21 +197,14 @@ void rebuild(Submap& s, const MappingConfig& config) {
 }
 
 // Writes into a fresh folder beside DIR, then swaps it in.
-void replace_folder(const fs::path& dir, const std::function<void(const fs::path&)>& write) {
+void write_folder(const fs::path& dir, const std::function<void(const fs::path&)>& write) {
   const fs::path tmp = dir.string() + ".tmp." + std::to_string(::getpid());
-  const fs::path old = dir.string() + ".old." + std::to_string(::getpid());
   std::error_code ec;
   fs::remove_all(tmp, ec);
   if (!fs::create_directories(tmp, ec) || ec) throw Error(tmp.string() + ": cannot create (" + ec.message() + ")");
   try {
     write(tmp);
-    // One atomic swap where the file system can (Linux renameat2): no instant without a session.
-    if (fs::exists(dir) && ::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, dir.c_str(), RENAME_EXCHANGE) == 0) {
-      fs::remove_all(tmp, ec);
-      return;
-    }
-    if (fs::exists(dir)) fs::rename(dir, old);
-    fs::rename(tmp, dir);
+    gcmap::replace_folder(tmp.string(), dir.string());  // no instant without a session
   } catch (const fs::filesystem_error& e) {
     fs::remove_all(tmp, ec);
     throw Error(dir.string() + ": cannot replace (" + e.code().message() + ")");
@@ -220,7 +212,6 @@ void replace_folder(const fs::path& dir, const std::function<void(const fs::path
     fs::remove_all(tmp, ec);
     throw;
   }
-  fs::remove_all(old, ec);
 }
 
 }  // namespace
@@ -245,7 +236,7 @@ void write_session(const std::string& dir, const MappingPipeline& p, const std::
 void write_session(const std::string& dir, const Session& s) {
   if (s.submaps.size() != s.T_world_submap.size() || s.stamps.size() != s.trajectory.size())
     throw Error(dir + ": inconsistent session (submaps and poses, or frames and stamps, differ in number)");
-  replace_folder(dir, [&](const fs::path& tmp) {
+  write_folder(dir, [&](const fs::path& tmp) {
     std::string bin(kMagic, sizeof kMagic);
     put<uint32_t>(bin, kSessionVersion);
     put<uint32_t>(bin, static_cast<uint32_t>(s.submaps.size()));
