@@ -1,5 +1,6 @@
 // Writes the seed corpora fuzz/corpus/<target>/ : small valid files, through gcmap's writers where it
-// has one (binary PLY and PCD, trajectories, config) and by hand for the formats it only reads.
+// has one (binary PLY and PCD, trajectories, config, bags: bag_seeds.hpp) and by hand for the
+// formats it only reads.
 // Usage: gcmap_fuzz_seeds fuzz/corpus
 #include <algorithm>
 #include <bit>
@@ -8,6 +9,7 @@
 #include <fstream>
 #include <iostream>
 
+#include "bag_seeds.hpp"
 #include "gcmap/core/se3.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/trajectory_io.hpp"
@@ -115,5 +117,6 @@ int main(int argc, char** argv) {
     fs::create_directories(root / name);
     make(root / name);
   }
+  fuzz::write_bag_seeds(root.string());
   return 0;
 }
