@@ -1,5 +1,7 @@
 #include "gcmap/io/bag_reader.hpp"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <filesystem>
 
@@ -8,6 +10,11 @@
 #include "gcmap/io/bag_chunks.hpp"
 
 namespace gcmap {
+
+void BagReader::warn(const std::string& what) {
+  spdlog::warn("{}", what);
+  warnings_.push_back(what);
+}
 
 const char* bag_format_name(BagFormat f) {
   switch (f) {

@@ -55,6 +55,10 @@ class BagReader {
                                               int64_t end_ns = std::numeric_limits<int64_t>::max()) = 0;
 
  protected:
+  // Logs once and keeps the line for warnings().
+  void warn(const std::string& what);
+  std::string where(uint64_t offset) const { return path_ + ": record at offset " + std::to_string(offset); }
+
   std::string path_;
   BagFormat format_ = BagFormat::mcap;
   std::vector<BagTopic> topics_;

@@ -1,6 +1,5 @@
 // MCAP (https://mcap.dev/spec): magic, records <opcode u8><length u64><body>, optional summary
 // section (schemas, channels, chunk indexes, statistics) located by the footer.
-#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <map>
@@ -74,12 +73,6 @@ class McapReader : public BagReader {
   }
 
  private:
-  void warn(const std::string& what) {
-    spdlog::warn("{}", what);
-    warnings_.push_back(what);
-  }
-  std::string where(uint64_t offset) const { return path_ + ": record at offset " + std::to_string(offset); }
-
   // The record at `offset` (opcode and length header included).
   void load_record(uint64_t offset, std::string& out) const {
     std::string head;

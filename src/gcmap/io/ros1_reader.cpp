@@ -1,7 +1,6 @@
 // ROS 1 bag v2.0 (http://wiki.ros.org/Bags/Format/2.0): "#ROSBAG V2.0\n", then records
 // <header_len u32><header: fields <len u32>name=value><data_len u32><data>; messages live in
 // (optionally bz2/lz4-compressed) chunk records; connections and chunk infos form the index at the end.
-#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <map>
@@ -110,12 +109,6 @@ class Ros1Reader : public BagReader {
   }
 
  private:
-  void warn(const std::string& what) {
-    spdlog::warn("{}", what);
-    warnings_.push_back(what);
-  }
-  std::string where(uint64_t offset) const { return path_ + ": record at offset " + std::to_string(offset); }
-
   // Reads the whole record at `pos` into `out`; returns its length.
   uint64_t read_record(uint64_t pos, std::string& out) const {
     std::string len;
