@@ -25,7 +25,6 @@ class LazyBackend : public LinearizationBackend {
   Device device() const override { return inner_->device(); }
   std::string name() const override { return inner_->name(); }
 
-  void set_threshold(double threshold) { threshold_ = threshold; }
   // Factor linearizations run and reused since construction.
   size_t linearized() const { return linearized_; }
   size_t reused() const { return reused_; }

@@ -95,12 +95,8 @@ void GlobalMapper::insert(Submap s, LoopDetector* loops) {
   w.lap_ms();  // loop time is counted in its own statistics
   // A verified loop says the estimate was off where it closes, so the revisit factors made at that
   // estimate may sit in a wrong minimum: the loop first steers without them.
-  // Poses then move by metres: this insertion re-linearizes every factor whose poses moved at all.
   int iterations = 0;
-  if (loop) {
-    if (lazy_) lazy_->set_threshold(0.0);
-    iterations += lm_.optimize(without_revisit_factors(), values_, {0}).iterations;
-  }
+  if (loop) iterations += lm_.optimize(without_revisit_factors(), values_, {0}).iterations;
   iterations += lm_.optimize(graph(), values_, {0}).iterations;
   double opt_ms = w.lap_ms();
   if (loop) {
@@ -109,7 +105,6 @@ void GlobalMapper::insert(Submap s, LoopDetector* loops) {
     stats_.factors.add(w.lap_ms());
     if (added) iterations += lm_.optimize(graph(), values_, {0}).iterations;
     opt_ms += w.lap_ms();
-    if (lazy_) lazy_->set_threshold(config_.global.relinearize_threshold);
   }
   stats_.optimization.add(opt_ms);
   count_linearizations();
