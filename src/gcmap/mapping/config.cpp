@@ -61,6 +61,7 @@ void visit(Config& c, Visitor&& v) {
   v("odometry", "max_gap", c.odometry.max_gap);
   v("odometry", "retry_distance", c.odometry.retry_distance);
   v("odometry", "retry_inlier_fraction", c.odometry.retry_inlier_fraction);
+  v("odometry", "start_voxel_resolution", c.odometry.start_voxel_resolution);
   v("local", "th_max", c.local.th_max);
   v("local", "th_min", c.local.th_min);
   v("local", "max_keyframes", c.local.max_keyframes);
@@ -212,6 +213,8 @@ void MappingConfig::validate() const {
   need(preprocess.downsample > 0, "preprocess.downsample must be positive");
   need(preprocess.num_neighbors >= 4, "preprocess.num_neighbors must be >= 4");
   need(odometry.voxel_resolution > 0, "odometry.voxel_resolution must be positive");
+  need(odometry.start_voxel_resolution >= odometry.voxel_resolution,
+       "odometry.start_voxel_resolution must be at least odometry.voxel_resolution");
   need(odometry.model_keyframes >= 1, "odometry.model_keyframes must be >= 1");
   need(odometry.max_iterations >= 1, "odometry.max_iterations must be >= 1");
   need(preprocess.sweep_period > 0 && std::isfinite(preprocess.sweep_start_deg),

@@ -14,6 +14,8 @@ namespace {
 // the intervals count as equal and the motion is extrapolated unscaled, bit for bit as without
 // stamps (0.1 ms is 1 mm at 10 m/s).
 constexpr double kEqualIntervals = 1e-4;
+constexpr double kSteadyRatio = 1.5;
+constexpr int kMaxFailedStreak = 3;
 
 }  // namespace
 
@@ -59,37 +61,80 @@ Eigen::Isometry3d Odometry::track(const std::shared_ptr<const PointCloud>& frame
     add_keyframe(frame, last_);
     return last_;
   }
-  const Eigen::Isometry3d T = estimate(*frame, predict(stamp), &last_failed_);
-  accept(frame, T, stamp);
+  const Eigen::Isometry3d T = estimate(*frame, predict(stamp), guess_kind(stamp), &last_failed_);
+  accept(frame, T, stamp, last_failed_);
   return last_;
 }
 
-Eigen::Isometry3d Odometry::estimate(const PointCloud& frame, const Eigen::Isometry3d& guess, bool* failed) const {
+Odometry::Guess Odometry::guess_kind(std::optional<double> stamp) const {
+  // Frames placed by the prediction in a row mean the velocity itself may be wrong.
+  if (frames_ < 2 || failed_streak_ >= kMaxFailedStreak) return Guess::rest;
+  if (!stamp || !last_stamp_ || !previous_stamp_) return Guess::steady;
+  const double dt_last = *last_stamp_ - *previous_stamp_, dt_now = *stamp - *last_stamp_;
+  if (std::abs(dt_now - dt_last) <= kEqualIntervals) return Guess::steady;
+  if (dt_last < kEqualIntervals || dt_now > config_.max_gap) return Guess::rest;
+  // Driver jitter leaves the prediction as good as at equal intervals; a dropped message does not.
+  return dt_now < kSteadyRatio * dt_last && dt_last < kSteadyRatio * dt_now ? Guess::steady : Guess::scaled;
+}
+
+GaussianVoxelMap Odometry::model_at(double resolution) const {
+  GaussianVoxelMap map(resolution);
+  for (const auto& [pose, cloud] : keyframes_) map.insert(*cloud, pose);
+  map.finalize();
+  return map;
+}
+
+Eigen::Isometry3d Odometry::estimate(const PointCloud& frame, const Eigen::Isometry3d& guess, Guess kind,
+                                     bool* failed) const {
   if (failed) *failed = false;
   if (!model_) return guess;
   RegistrationConfig reg;
   reg.max_iterations = config_.max_iterations;
+  if (kind == Guess::rest) {
+    // Nothing to compare the result with: standing still is no prediction, only the start.
+    const Eigen::Isometry3d coarse = align_vgicp(frame, model_at(config_.start_voxel_resolution), guess, reg).T_target_source;
+    const RegistrationResult r = align_vgicp(frame, *model_, coarse, reg);
+    if (failed) *failed = r.num_inliers <= 50;
+    return r.num_inliers <= 50 ? guess : r.T_target_source;
+  }
   const double min_inliers = config_.retry_inlier_fraction * frame.size();
   RegistrationResult r = align_vgicp(frame, *model_, guess, reg);
-  if (r.num_inliers < min_inliers) {
-    // Low overlap: a wrong prediction (a gap, a turn) may have led into a local minimum. Retry
-    // from zero motion and, with twice the voxel size (a wider basin), from both guesses.
-    GaussianVoxelMap coarse(2.0 * config_.voxel_resolution);
-    for (const auto& [pose, cloud] : keyframes_) coarse.insert(*cloud, pose);
-    coarse.finalize();
+  const auto far = [&](const RegistrationResult& x) {
+    return (guess.inverse() * x.T_target_source).translation().norm() > config_.retry_distance;
+  };
+  // Low overlap near a steady guess is no reason for doubt: on a fast straight road the model's
+  // ground rings cover little of the scan.
+  if (r.num_inliers < min_inliers && (kind == Guess::scaled || far(r))) {
+    // A wrong prediction (a gap, a turn) may have led into a local minimum. Retry from zero
+    // motion and, with twice the voxel size (a wider basin), from both guesses.
+    const GaussianVoxelMap coarse = model_at(2.0 * config_.voxel_resolution);
     for (int k = 0; k < 3; ++k) {
       const Eigen::Isometry3d from = k == 0 ? last_ : align_vgicp(frame, coarse, k == 1 ? guess : last_, reg).T_target_source;
       const RegistrationResult retry = align_vgicp(frame, *model_, from, reg);
       if (retry.num_inliers > r.num_inliers || (retry.num_inliers == r.num_inliers && retry.error < r.error)) r = retry;
     }
   }
-  const bool far = (guess.inverse() * r.T_target_source).translation().norm() > config_.retry_distance;
-  const bool bad = r.num_inliers <= 50 || (r.num_inliers < min_inliers && far);
+  // Zero motion is a false minimum on a fast straight road: the scan's ground rings fall on those
+  // of the last keyframe, and road-parallel structure does not object. Over one equal interval,
+  // stopping retry_distance short of the constant-velocity guess (braking 10 m/s in 0.1 s) is no
+  // motion a vehicle makes: retried from the guess on twice the voxel size, it fails if it persists.
+  const double guess_motion = (last_.inverse() * guess).translation().norm();
+  const auto stops_short = [&](const RegistrationResult& x) {
+    return (last_.inverse() * x.T_target_source).translation().norm() < guess_motion - config_.retry_distance;
+  };
+  const bool implausible = kind == Guess::steady && stops_short(r);
+  if (implausible) {
+    const GaussianVoxelMap coarse = model_at(2.0 * config_.voxel_resolution);
+    r = align_vgicp(frame, *model_, align_vgicp(frame, coarse, guess, reg).T_target_source, reg);
+  }
+  const bool bad = r.num_inliers <= 50 || (implausible && stops_short(r)) || (r.num_inliers < min_inliers && far(r));
   if (failed) *failed = bad;
   return bad ? guess : r.T_target_source;
 }
 
-void Odometry::accept(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T, std::optional<double> stamp) {
+void Odometry::accept(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T, std::optional<double> stamp,
+                      bool failed) {
+  failed_streak_ = failed ? failed_streak_ + 1 : 0;
   if (!model_) {
     set_pose(T, stamp);
     add_keyframe(frame, T);

@@ -20,15 +20,24 @@ class Odometry {
   // registration fails (see estimate) gets the prediction and last_failed().
   Eigen::Isometry3d track(const std::shared_ptr<const PointCloud>& frame, std::optional<double> stamp = std::nullopt,
                           bool* ok = nullptr);
+  // What a prediction rests on: no motion known yet (the second frame, or after a gap of
+  // odometry.max_gap); the last motion over an equal interval; the last motion scaled to another.
+  enum class Guess { rest, steady, scaled };
+  Guess guess_kind(std::optional<double> stamp = std::nullopt) const;
   // The two halves of track() for a usable frame: scan-to-model registration from a guess (no
   // state change), then the accepted pose and possibly a new keyframe of the model.
-  // A registration matching fewer than odometry.retry_inlier_fraction of the points is retried
-  // from zero motion (the last pose) and on coarser voxels, the result with most inliers kept;
-  // when that still matches so few and lands over odometry.retry_distance from the guess, or
-  // hardly any point matches, the guess is returned and *failed set.
-  Eigen::Isometry3d estimate(const PointCloud& frame, const Eigen::Isometry3d& guess, bool* failed = nullptr) const;
+  // From rest, the search starts on odometry.start_voxel_resolution and its result is taken.
+  // Otherwise a registration matching fewer than odometry.retry_inlier_fraction of the points
+  // (and, from a steady guess, landing over odometry.retry_distance from it) is retried from zero
+  // motion (the last pose) and on coarser voxels, the result with most inliers kept; one that
+  // stops odometry.retry_distance short of a steady guess is retried from the guess on coarser
+  // voxels. When the result still stops that short, or still matches so few and lands over
+  // odometry.retry_distance from the guess, or hardly any point matches, the guess is returned
+  // and *failed set.
+  Eigen::Isometry3d estimate(const PointCloud& frame, const Eigen::Isometry3d& guess, Guess kind,
+                             bool* failed = nullptr) const;
   void accept(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T,
-              std::optional<double> stamp = std::nullopt);
+              std::optional<double> stamp = std::nullopt, bool failed = false);
   bool has_model() const { return model_ != nullptr; }
   bool last_failed() const { return last_failed_; }
 
@@ -40,10 +49,12 @@ class Odometry {
 
  private:
   void add_keyframe(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T);
+  GaussianVoxelMap model_at(double resolution) const;  // the keyframes on other voxels
 
   OdometryConfig config_;
   int frames_ = 0;
   bool last_failed_ = false;
+  int failed_streak_ = 0;  // frames placed by the prediction in a row
   Eigen::Isometry3d last_ = Eigen::Isometry3d::Identity(), previous_ = Eigen::Isometry3d::Identity();
   std::optional<double> last_stamp_, previous_stamp_;
   std::deque<std::pair<Eigen::Isometry3d, std::shared_ptr<const PointCloud>>> keyframes_;

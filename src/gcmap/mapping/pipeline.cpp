@@ -117,12 +117,13 @@ Eigen::Isometry3d MappingPipeline::track(const std::shared_ptr<PointCloud>& clou
   const PointCloud raw = *cloud;
   const Eigen::Isometry3d prev = odometry_poses_[n - 1];
   Eigen::Isometry3d T = odometry_.predict(stamp);
+  const Odometry::Guess kind = odometry_.guess_kind(stamp);
   for (int pass = 0; pass < 2; ++pass) {
     *cloud = raw;
     deskew(*cloud, se3_log(prev.inverse() * T) / dt);
-    T = odometry_.estimate(*cloud, T, &f.odometry_failed);
+    T = odometry_.estimate(*cloud, T, pass == 0 ? kind : Odometry::Guess::steady, &f.odometry_failed);
   }
-  odometry_.accept(cloud, T, stamp);
+  odometry_.accept(cloud, T, stamp, f.odometry_failed);
   f.deskewed = true;
   return T;
 }
