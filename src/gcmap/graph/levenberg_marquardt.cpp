@@ -229,6 +229,7 @@ LMResult LevenbergMarquardt::optimize(const FactorGraph& graph, Values& values, 
   }
   result.final_error = error;
   result.analyses = solver_.analyses() - analyses_before;
+  result.total_ms = total.ms();
   return result;
 }
 
