@@ -51,14 +51,21 @@ TEST(SparseSolver, ReusedAnalysisEqualsFreshAnalysis) {
   }
 }
 
-TEST(SparseSolver, SingularMatrixIsNotFactorized) {
-  Eigen::SparseMatrix<double> A = random_spd(30, 4, 4);
-  for (int r = 0; r < 30; ++r)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(A, r); it; ++it)
-      if (it.row() == 12 || it.col() == 12) it.valueRef() = 0.0;  // a zero row and column
+TEST(SparseSolver, SingularMatrixIsNotFactorizedAndTheNextTryReusesTheAnalysis) {
+  const Eigen::SparseMatrix<double> good = random_spd(30, 4, 4);
+  Eigen::SparseMatrix<double> singular = good;
+  for (int c = 0; c < 30; ++c)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(singular, c); it; ++it)
+      if (it.row() == 12 || it.col() == 12) it.valueRef() = 0.0;  // a zero row and column, same pattern
+  const Eigen::VectorXd rhs = Eigen::VectorXd::Ones(30);
   for (LinearSolver kind : built_solvers()) {
+    SCOPED_TRACE(linear_solver_name(kind));
     SparseSolver solver(kind);
-    EXPECT_FALSE(solver.factorize(A)) << linear_solver_name(kind);
+    EXPECT_FALSE(solver.factorize(singular));
+    ASSERT_TRUE(solver.factorize(good));  // as LM's next, more damped trial
+    EXPECT_EQ(solver.analyses(), 1);
+    const Eigen::VectorXd x = solver.solve(rhs);
+    EXPECT_LT((good.selfadjointView<Eigen::Lower>() * x - rhs).norm(), 1e-12 * rhs.norm());
   }
   if (!cholmod_available()) EXPECT_THROW(SparseSolver{LinearSolver::cholmod}, Error);
 }

@@ -43,12 +43,12 @@ struct LMResult {
 };
 
 // Levenberg-Marquardt over a block-sparse 6x6 system assembled from the factors' Hessian blocks,
-// solved by a SparseSolver (CHOLMOD or Eigen, config.linear_solver) that keeps its symbolic analysis
+// solved by a SparseSolver (Eigen or CHOLMOD, config.linear_solver) that keeps its symbolic analysis
 // while the system's pattern stays the same, also across calls; the damping lambda carries over
-// between calls (warm start). Correspondence policy: each iteration
-// re-linearizes (re-associates) every factor; trial steps are judged by Factor::trial_error with the
-// association and robust weights of that linearization, so the gain ratio compares like with like,
-// and a step is accepted only when that error decreases.
+// between calls (warm start). Correspondence policy: each iteration re-linearizes (re-associates)
+// every factor; trial steps are judged by Factor::trial_error with the association and robust
+// weights of that linearization, so the gain ratio compares like with like, and a step is accepted
+// only when that error decreases.
 class LevenbergMarquardt {
  public:
   explicit LevenbergMarquardt(LMConfig config = {}, std::shared_ptr<LinearizationBackend> backend = nullptr);

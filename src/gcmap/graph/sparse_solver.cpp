@@ -60,12 +60,16 @@ bool SparseSolver::factorize(const SparseMatrix& A) {
   const auto* outer = A.outerIndexPtr();
   const auto* inner = A.innerIndexPtr();
   const size_t cols = static_cast<size_t>(A.outerSize()) + 1, nnz = static_cast<size_t>(A.nonZeros());
-  const bool same = outer_.size() == cols && inner_.size() == nnz && std::equal(outer_.begin(), outer_.end(), outer) &&
-                    std::equal(inner_.begin(), inner_.end(), inner);
+  const bool same = A.isCompressed() && outer_.size() == cols && inner_.size() == nnz &&
+                    std::equal(outer_.begin(), outer_.end(), outer) && std::equal(inner_.begin(), inner_.end(), inner);
   if (!same) {
     std::visit([&](auto& s) { s.analyzePattern(A); }, impl_->solver);
-    outer_.assign(outer, outer + cols);
-    inner_.assign(inner, inner + nnz);
+    outer_.clear();
+    inner_.clear();
+    if (A.isCompressed()) {  // an uncompressed matrix is analysed every time
+      outer_.assign(outer, outer + cols);
+      inner_.assign(inner, inner + nnz);
+    }
     ++analyses_;
     analyse_ms_ += w.lap_ms();
   } else {

@@ -24,8 +24,9 @@ class SparseSolver {
   SparseSolver(SparseSolver&&) noexcept;
   SparseSolver& operator=(SparseSolver&&) noexcept;
 
-  // Factorizes A (compressed, lower triangle stored), analysing first when its pattern differs from
-  // the last analysed one. False when A is not numerically factorizable (e.g. not positive definite).
+  // Factorizes A (lower triangle stored), analysing first when its pattern differs from the last
+  // analysed one (an uncompressed A is always analysed). False when A is not numerically
+  // factorizable (e.g. not positive definite); the analysis is kept for the next try.
   bool factorize(const Eigen::SparseMatrix<double>& A);
   Eigen::VectorXd solve(const Eigen::VectorXd& rhs);
 
