@@ -1,6 +1,5 @@
 #include "gcmap/graph/levenberg_marquardt.hpp"
 
-#include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #include <algorithm>
 #include <cmath>
@@ -58,11 +57,41 @@ Structure analyse(const FactorGraph& graph, const Values& values, const std::set
   return s;
 }
 
+// H (lower triangle) and b from the factors' linearizations. blocks and triplets are buffers.
+void assemble(const Structure& s, std::span<Factor* const> factors, std::span<const FactorLinearization> lin,
+              std::vector<Matrix6d>& blocks, std::vector<Eigen::Triplet<double>>& triplets, Eigen::SparseMatrix<double>& H,
+              Eigen::VectorXd& b) {
+  const int n = static_cast<int>(s.keys.size());
+  for (auto& B : blocks) B.setZero();
+  b.setZero(6 * n);
+  for (size_t f = 0; f < factors.size(); ++f) {
+    const int nk = factors[f]->num_keys();
+    for (int a = 0; a < nk; ++a) {
+      const int va = s.factor_vars[f][a];
+      if (va < 0) continue;
+      b.segment<6>(6 * va) += lin[f].b.segment<6>(6 * a);
+      for (int c = 0; c < nk; ++c) {
+        const int blk = s.factor_blocks[f][a * 2 + c];
+        if (blk >= 0) blocks[blk] += lin[f].H.block<6, 6>(6 * a, 6 * c);
+      }
+    }
+  }
+  triplets.clear();
+  for (size_t k = 0; k < s.blocks.size(); ++k) {
+    const auto [r, c] = s.blocks[k];
+    for (int i = 0; i < 6; ++i)
+      for (int j = 0; j < 6; ++j)
+        if (r != c || i >= j) triplets.emplace_back(6 * r + i, 6 * c + j, blocks[k](i, j));
+  }
+  H.resize(6 * n, 6 * n);
+  H.setFromTriplets(triplets.begin(), triplets.end());
+}
+
 }  // namespace
 
 LevenbergMarquardt::LevenbergMarquardt(LMConfig config, std::shared_ptr<LinearizationBackend> backend)
     : config_(config), backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
-      lambda_(config.initial_lambda) {}
+      solver_(config.linear_solver), lambda_(config.initial_lambda) {}
 
 LMResult LevenbergMarquardt::optimize(const FactorGraph& graph, Values& values, const std::set<int>& fixed) {
   Stopwatch total;
@@ -100,52 +129,27 @@ LMResult LevenbergMarquardt::optimize(const FactorGraph& graph, Values& values, 
     return result;
   }
 
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower> solver;
-  bool analysed = false;
   std::vector<Matrix6d> blocks(s.blocks.size());
   std::vector<Eigen::Triplet<double>> triplets;
   triplets.reserve(s.blocks.size() * 36);
+  Eigen::SparseMatrix<double> H;
+  Eigen::VectorXd b;
+  const int analyses_before = solver_.analyses();
 
   for (int iter = 1; iter <= config_.max_iterations; ++iter) {
     LMIteration stats;
     stats.iteration = iter;
     const double lin_ms_before = result.linearize_ms;
-
-    // Assemble H (lower triangle) and b.
-    for (auto& B : blocks) B.setZero();
-    Eigen::VectorXd b = Eigen::VectorXd::Zero(6 * n);
-    for (size_t f = 0; f < nf; ++f) {
-      const int nk = factors[f]->num_keys();
-      for (int a = 0; a < nk; ++a) {
-        const int va = s.factor_vars[f][a];
-        if (va < 0) continue;
-        b.segment<6>(6 * va) += lin[f].b.segment<6>(6 * a);
-        for (int c = 0; c < nk; ++c) {
-          const int blk = s.factor_blocks[f][a * 2 + c];
-          if (blk >= 0) blocks[blk] += lin[f].H.block<6, 6>(6 * a, 6 * c);
-        }
-      }
-    }
+    Stopwatch wa;
+    assemble(s, factors, lin, blocks, triplets, H, b);
     if (iter == 1) {
       for (int v = 0; v < n; ++v) {
         if (!(blocks[v].trace() > 0.0))
           throw Error("pose " + std::to_string(s.keys[v]) + " is not constrained by any factor (singular system)");
       }
     }
-    triplets.clear();
-    for (size_t k = 0; k < s.blocks.size(); ++k) {
-      const auto [r, c] = s.blocks[k];
-      for (int i = 0; i < 6; ++i)
-        for (int j = 0; j < 6; ++j)
-          if (r != c || i >= j) triplets.emplace_back(6 * r + i, 6 * c + j, blocks[k](i, j));
-    }
-    Eigen::SparseMatrix<double> H(6 * n, 6 * n);
-    H.setFromTriplets(triplets.begin(), triplets.end());
     const Eigen::VectorXd diag = H.diagonal();
-    if (!analysed) {
-      solver.analyzePattern(H);
-      analysed = true;
-    }
+    stats.assemble_ms = wa.ms();
     // H is stored as its lower triangle: H * x needs the symmetric view.
     auto quad = [&](const Eigen::VectorXd& x) { return x.dot(H.selfadjointView<Eigen::Lower>() * x); };
 
@@ -156,18 +160,15 @@ LMResult LevenbergMarquardt::optimize(const FactorGraph& graph, Values& values, 
     stats.solve_ms = 0.0;
     while (lambda_ <= config_.max_lambda) {
       ++stats.trials;
-      Stopwatch w;
+      Stopwatch wa_trial;
       Eigen::SparseMatrix<double> A = H;
       for (int k = 0; k < 6 * n; ++k) A.coeffRef(k, k) += lambda_ * std::max(diag[k], 1e-6);
-      solver.factorize(A);
-      if (solver.info() != Eigen::Success) {
-        stats.solve_ms += w.ms();
-        lambda_ *= config_.lambda_up;
-        continue;
-      }
-      delta = solver.solve(-b);
+      stats.assemble_ms += wa_trial.ms();
+      Stopwatch w;
+      const bool factorized = solver_.factorize(A);
+      if (factorized) delta = solver_.solve(-b);
       stats.solve_ms += w.ms();
-      if (!delta.allFinite()) {
+      if (!factorized || !delta.allFinite()) {
         lambda_ *= config_.lambda_up;
         continue;
       }
@@ -196,6 +197,7 @@ LMResult LevenbergMarquardt::optimize(const FactorGraph& graph, Values& values, 
       lambda_ *= config_.lambda_up;
     }
     result.solve_ms += stats.solve_ms;
+    result.assemble_ms += stats.assemble_ms;
     stats.lambda = lambda_;
     if (!accepted) {
       // No damping gives a decrease: a minimum of the current linearization.
@@ -226,6 +228,7 @@ LMResult LevenbergMarquardt::optimize(const FactorGraph& graph, Values& values, 
     if (last) break;
   }
   result.final_error = error;
+  result.analyses = solver_.analyses() - analyses_before;
   result.total_ms = total.ms();
   return result;
 }

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "gcmap/graph/backend.hpp"
+#include "gcmap/graph/sparse_solver.hpp"
 
 namespace gcmap {
 
@@ -15,6 +16,7 @@ struct LMConfig {
   double lambda_up = 10.0;
   double relative_error_tol = 1e-6;  // stop when an accepted step lowers the error by less
   double step_tol = 1e-6;            // stop when the largest step component is smaller
+  LinearSolver linear_solver = LinearSolver::eigen;
 };
 
 struct LMIteration {
@@ -23,7 +25,8 @@ struct LMIteration {
   double lambda = 0.0;
   int trials = 0;
   double linearize_ms = 0.0;
-  double solve_ms = 0.0;
+  double assemble_ms = 0.0;  // H and b from the factors' blocks, and the damped copies
+  double solve_ms = 0.0;     // symbolic analysis (when the pattern changed), factorizations, solves
 };
 
 struct LMResult {
@@ -31,18 +34,21 @@ struct LMResult {
   bool converged = false;
   double initial_error = 0.0;
   double final_error = 0.0;
+  int analyses = 0;  // symbolic analyses run (0: the last call's pattern was reused)
   double linearize_ms = 0.0;
+  double assemble_ms = 0.0;
   double solve_ms = 0.0;
   double total_ms = 0.0;
   std::vector<LMIteration> history;
 };
 
 // Levenberg-Marquardt over a block-sparse 6x6 system assembled from the factors' Hessian blocks,
-// solved with a sparse LDL^T (Eigen). The pattern is analysed once per call; the damping
-// lambda carries over between calls (warm start). Correspondence policy: each iteration
-// re-linearizes (re-associates) every factor; trial steps are judged by Factor::trial_error with the
-// association and robust weights of that linearization, so the gain ratio compares like with like,
-// and a step is accepted only when that error decreases.
+// solved by a SparseSolver (Eigen or CHOLMOD, config.linear_solver) that keeps its symbolic analysis
+// while the system's pattern stays the same, also across calls; the damping lambda carries over
+// between calls (warm start). Correspondence policy: each iteration re-linearizes (re-associates)
+// every factor; trial steps are judged by Factor::trial_error with the association and robust
+// weights of that linearization, so the gain ratio compares like with like, and a step is accepted
+// only when that error decreases.
 class LevenbergMarquardt {
  public:
   explicit LevenbergMarquardt(LMConfig config = {}, std::shared_ptr<LinearizationBackend> backend = nullptr);
@@ -57,6 +63,7 @@ class LevenbergMarquardt {
  private:
   LMConfig config_;
   std::shared_ptr<LinearizationBackend> backend_;
+  SparseSolver solver_;
   double lambda_;
 };
 

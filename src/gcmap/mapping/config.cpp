@@ -30,12 +30,14 @@ constexpr std::pair<GlobalMode, const char*> kGlobalModes[] = {{GlobalMode::full
                                                                {GlobalMode::sliding_window, "sliding-window"}};
 constexpr std::pair<FactorSource, const char*> kFactorSources[] = {{FactorSource::vgicp, "vgicp"}, {FactorSource::se3, "se3"}};
 constexpr std::pair<Relinearize, const char*> kRelinearize[] = {{Relinearize::always, "always"}, {Relinearize::moved, "moved"}};
+constexpr std::pair<LinearSolver, const char*> kLinearSolvers[] = {{LinearSolver::eigen, "eigen"}, {LinearSolver::cholmod, "cholmod"}};
 
 template <typename E>
 E parse_config_enum(const std::string& text, const std::string& key) {
   if constexpr (std::is_same_v<E, GlobalMode>) return parse_enum(text, key, kGlobalModes);
   else if constexpr (std::is_same_v<E, FactorSource>) return parse_enum(text, key, kFactorSources);
-  else return parse_enum(text, key, kRelinearize);
+  else if constexpr (std::is_same_v<E, Relinearize>) return parse_enum(text, key, kRelinearize);
+  else return parse_enum(text, key, kLinearSolvers);
 }
 
 // Visits every (section, key, field) once, for loading and dumping alike.
@@ -81,6 +83,7 @@ void visit(Config& c, Visitor&& v) {
   v("global", "final_iterations", c.global.final_iterations);
   v("global", "relinearize", c.global.relinearize);
   v("global", "relinearize_threshold", c.global.relinearize_threshold);
+  v("global", "linear_solver", c.global.linear_solver);
   v("global", "factor_source_points", c.global.factor_source_points);
   v("loop", "enabled", c.loop.enabled);
   v("loop", "rings", c.loop.scan_context.rings);
@@ -139,6 +142,7 @@ std::string format_double(double v) {
 const char* to_string(GlobalMode mode) { return kGlobalModes[static_cast<int>(mode)].second; }
 const char* to_string(FactorSource source) { return kFactorSources[static_cast<int>(source)].second; }
 const char* to_string(Relinearize policy) { return kRelinearize[static_cast<int>(policy)].second; }
+const char* to_string(LinearSolver solver) { return kLinearSolvers[static_cast<int>(solver)].second; }
 GlobalMode parse_global_mode(const std::string& text, const std::string& key) { return parse_config_enum<GlobalMode>(text, key); }
 FactorSource parse_factor_source(const std::string& text, const std::string& key) {
   return parse_config_enum<FactorSource>(text, key);
@@ -233,6 +237,8 @@ void MappingConfig::validate() const {
   need(global.voxel_resolution > 0, "global.voxel_resolution must be positive");
   need(global.window >= 1, "global.window must be >= 1");
   need(global.relinearize_threshold >= 0, "global.relinearize_threshold must be >= 0");
+  need(global.linear_solver != LinearSolver::cholmod || cholmod_available(),
+       "global.linear_solver is cholmod, but this build has no CHOLMOD (SuiteSparse)");
   need(global.max_iterations >= 1 && global.final_iterations >= 1, "global iteration limits must be >= 1");
   need(local.relative_error_tol >= 0 && global.relative_error_tol >= 0, "relative_error_tol must be >= 0");
   need(loop.scan_context.rings >= 1 && loop.scan_context.sectors >= 2 && loop.scan_context.max_radius > 0,

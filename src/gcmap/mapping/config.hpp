@@ -5,6 +5,7 @@
 #include <variant>
 #include <vector>
 
+#include "gcmap/graph/sparse_solver.hpp"
 #include "gcmap/mapping/scan_context.hpp"
 
 namespace gcmap {
@@ -20,6 +21,7 @@ enum class Relinearize { always, moved };
 const char* to_string(GlobalMode mode);
 const char* to_string(FactorSource source);
 const char* to_string(Relinearize policy);
+const char* to_string(LinearSolver solver);  // "eigen", "cholmod"
 // Throws Error naming `key` when the text is none of the names.
 GlobalMode parse_global_mode(const std::string& text, const std::string& key);
 FactorSource parse_factor_source(const std::string& text, const std::string& key);
@@ -92,6 +94,7 @@ struct GlobalMappingConfig {
   // Norm of a factor's relative-pose change [rad, m] since its linearization. GLIM's iSAM2 uses
   // 0.1; on city (1500 frames) 0.1 / 0.05 / 0.02 gave t_rel 7.3 / 3.9 / 1.2 % above always.
   double relinearize_threshold = 0.02;
+  LinearSolver linear_solver = LinearSolver::eigen;  // LM's sparse solve (graph/sparse_solver.hpp)
   // Points of a submap used as the source of its matching-cost factors and overlaps (an even
   // subsample; target voxel maps keep every point). The global graph's cost is linear in it.
   int factor_source_points = 20000;

@@ -20,10 +20,11 @@ const char* to_string(FactorKind kind) {
 }
 
 namespace {
-LMConfig lm_config(int iterations, double relative_error_tol = LMConfig{}.relative_error_tol) {
+LMConfig lm_config(const GlobalMappingConfig& global, int iterations, double relative_error_tol = LMConfig{}.relative_error_tol) {
   LMConfig c;
   c.max_iterations = iterations;
   c.relative_error_tol = relative_error_tol;
+  c.linear_solver = global.linear_solver;
   return c;
 }
 }  // namespace
@@ -40,7 +41,7 @@ GlobalMapper::GlobalMapper(const MappingConfig& config, std::shared_ptr<Lineariz
       lazy_(config.global.relinearize == Relinearize::moved
                 ? std::make_shared<LazyBackend>(backend_, config.global.relinearize_threshold)
                 : nullptr),
-      lm_(lm_config(config.global.max_iterations, config.global.relative_error_tol), lm_backend()) {}
+      lm_(lm_config(config.global, config.global.max_iterations, config.global.relative_error_tol), lm_backend()) {}
 
 std::shared_ptr<LinearizationBackend> GlobalMapper::lm_backend() const {
   return lazy_ ? std::static_pointer_cast<LinearizationBackend>(lazy_) : backend_;
@@ -160,7 +161,7 @@ int GlobalMapper::connect_overlapping(int id, int first) {
 void GlobalMapper::optimize_final(std::optional<int> max_iterations) {
   const int iterations = max_iterations ? std::min(*max_iterations, config_.global.final_iterations) : config_.global.final_iterations;
   if (factors_.empty() || iterations <= 0) return;
-  LevenbergMarquardt final_lm(lm_config(iterations), lm_backend());
+  LevenbergMarquardt final_lm(lm_config(config_.global, iterations), lm_backend());
   Stopwatch w;
   stats_.final_iterations = final_lm.optimize(graph(), values_, {0}).iterations;
   stats_.final_optimization_ms = w.ms();
