@@ -104,27 +104,47 @@ Eigen::Isometry3d MappingPipeline::track(const std::shared_ptr<PointCloud>& clou
       f.deskewed = true;
     }
     odometry_.set_pose(*T_odom, stamp);
+    reference_ = {*T_odom, stamp};
     return *T_odom;
   }
   if (!timed || !odometry_.has_model() || cloud->size() < 100 || !cloud->has_covs()) {
     const Eigen::Isometry3d T = odometry_.track(cloud, stamp);
     f.odometry_failed = odometry_.last_failed();
+    reference_ = {T, stamp};
     return T;
   }
-  // The motion over the interval that ends at this scan stands for the motion within its sweep:
-  // first the prediction, then the motion to where the deskewed scan registered. Deskewing with a
-  // stale velocity alone feeds its error back into the next velocity.
+  return track_deskewed(cloud, stamp, dt, f);
+}
+
+Eigen::Isometry3d MappingPipeline::track_deskewed(const std::shared_ptr<PointCloud>& cloud, double stamp, double dt,
+                                                  Frame& f) {
+  // A deskewed sweep registers best at the mean time of its points: an error of the assumed motion
+  // moves earlier and later points in opposite directions. The motion between these instants of
+  // the previous and this sweep (centred on the sweep start) stands for the motion within the sweep;
+  // the motion between the scan stamps lags it by a whole sweep period, twice as much. First the
+  // prediction, then that registered motion, refined once more.
   const PointCloud raw = *cloud;
-  const Eigen::Isometry3d prev = odometry_poses_[n - 1];
+  double t_mean = 0.0;
+  for (const float t : raw.times) t_mean += t;
+  t_mean /= static_cast<double>(raw.size());
+  const double span = stamp + t_mean - reference_.stamp;
   Eigen::Isometry3d T = odometry_.predict(stamp);
   const Odometry::Guess kind = odometry_.guess_kind(stamp);
-  for (int pass = 0; pass < 2; ++pass) {
+  Vector6d velocity = se3_log(odometry_poses_.back().inverse() * T) / dt;
+  for (int pass = 0; pass < 3; ++pass) {
     *cloud = raw;
-    deskew(*cloud, se3_log(prev.inverse() * T) / dt);
-    T = odometry_.estimate(*cloud, T, pass == 0 ? kind : Odometry::Guess::steady, &f.odometry_failed);
+    deskew(*cloud, velocity);
+    const Eigen::Isometry3d T_world_stamp =
+        odometry_.estimate(*cloud, T, pass == 0 ? kind : Odometry::Guess::steady, &f.odometry_failed);
+    const Eigen::Isometry3d T_world_mean = T_world_stamp * se3_exp(t_mean * velocity);
+    if (span > 1e-6) velocity = se3_log(reference_.pose.inverse() * T_world_mean) / span;
+    T = T_world_mean * se3_exp(-t_mean * velocity);
   }
+  *cloud = raw;
+  deskew(*cloud, velocity);
   odometry_.accept(cloud, T, stamp, f.odometry_failed);
   f.deskewed = true;
+  reference_ = {T * se3_exp(t_mean * velocity), stamp + t_mean};
   return T;
 }
 

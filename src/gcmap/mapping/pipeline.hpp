@@ -102,6 +102,7 @@ class MappingPipeline {
  private:
   Eigen::Isometry3d track(const std::shared_ptr<PointCloud>& cloud, double stamp,
                           const std::optional<Eigen::Isometry3d>& T_odom, Frame& f);
+  Eigen::Isometry3d track_deskewed(const std::shared_ptr<PointCloud>& cloud, double stamp, double dt, Frame& f);
 
   MappingConfig config_;
   std::shared_ptr<LinearizationBackend> backend_;
@@ -111,6 +112,13 @@ class MappingPipeline {
   std::vector<double> stamps_;
   std::vector<FrameStatus> statuses_;
   std::vector<Eigen::Isometry3d> odometry_poses_;
+  // The last frame's pose at the instant its registration fixes best (see track_deskewed): the
+  // mean point time of a deskewed sweep, else the scan stamp.
+  struct SweepReference {
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    double stamp = 0.0;
+  };
+  SweepReference reference_;
   size_t unusable_ = 0, odometry_failures_ = 0;
   TimingStats preprocess_ms_, odometry_ms_;
   Stopwatch clock_;

@@ -74,9 +74,13 @@ Eigen::Isometry3d Drive::pose(double frame) const {
   const size_t seg = std::min<size_t>(std::lower_bound(arc_.begin() + 1, arc_.end(), s) - arc_.begin(), lane_.size() - 1) - 1;
   const double f = std::clamp((s - arc_[seg]) / std::max(arc_[seg + 1] - arc_[seg], 1e-9), 0.0, 1.0);
   const Eigen::Vector2f p = lane_[seg] + static_cast<float>(f) * (lane_[seg + 1] - lane_[seg]);
-  // Heading from a short look-ahead/behind chord smooths the polyline's kinks.
-  const size_t a = seg >= kChord ? seg - kChord : 0, b = std::min<size_t>(seg + kChord + 1, lane_.size() - 1);
-  const Eigen::Vector2f t = (lane_[b] - lane_[a]).normalized();
+  // Heading from a short look-ahead/behind chord smooths the polyline's kinks; interpolated
+  // between the chords of neighbouring vertices so that it turns continuously, not in steps.
+  const auto chord = [&](size_t i) {
+    const size_t a = i >= kChord ? i - kChord : 0, b = std::min<size_t>(i + kChord, lane_.size() - 1);
+    return Eigen::Vector2d((lane_[b] - lane_[a]).cast<double>().normalized());
+  };
+  const Eigen::Vector2d t = ((1.0 - f) * chord(seg) + f * chord(seg + 1)).normalized();
   // The vehicle follows the terrain: z along the ground normal, x along the heading.
   const Eigen::Vector2f g = world_.ground_gradient(p.x(), p.y());
   const Eigen::Vector3d z = Eigen::Vector3d(-g.x(), -g.y(), 1.0).normalized();
