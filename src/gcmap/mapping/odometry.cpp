@@ -118,9 +118,12 @@ Eigen::Isometry3d Odometry::estimate(const PointCloud& frame, const Eigen::Isome
   // of the last keyframe, and road-parallel structure does not object. Over one equal interval,
   // stopping retry_distance short of the constant-velocity guess (braking 10 m/s in 0.1 s) is no
   // motion a vehicle makes: retried from the guess on twice the voxel size, it fails if it persists.
-  const double guess_motion = (last_.inverse() * guess).translation().norm();
+  // Progress along the guessed motion (a result past zero motion, backwards, stops short too).
+  const Eigen::Vector3d guess_motion = (last_.inverse() * guess).translation();
+  const double guess_length = guess_motion.norm();
   const auto stops_short = [&](const RegistrationResult& x) {
-    return (last_.inverse() * x.T_target_source).translation().norm() < guess_motion - config_.retry_distance;
+    const Eigen::Vector3d motion = (last_.inverse() * x.T_target_source).translation();
+    return motion.dot(guess_motion) < guess_length * (guess_length - config_.retry_distance);
   };
   const bool implausible = kind == Guess::steady && stops_short(r);
   if (implausible) {

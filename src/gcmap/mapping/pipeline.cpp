@@ -136,6 +136,12 @@ Eigen::Isometry3d MappingPipeline::track_deskewed(const std::shared_ptr<PointClo
     deskew(*cloud, velocity);
     const Eigen::Isometry3d T_world_stamp =
         odometry_.estimate(*cloud, T, pass == 0 ? kind : Odometry::Guess::steady, &f.odometry_failed);
+    if (pass == 0 && kind == Odometry::Guess::rest) {
+      // Registered undeskewed: only a first velocity, between the stamps.
+      velocity = se3_log(odometry_poses_.back().inverse() * T_world_stamp) / dt;
+      T = T_world_stamp;
+      continue;
+    }
     const Eigen::Isometry3d T_world_mean = T_world_stamp * se3_exp(t_mean * velocity);
     if (span > 1e-6) velocity = se3_log(reference_.pose.inverse() * T_world_mean) / span;
     T = T_world_mean * se3_exp(-t_mean * velocity);
