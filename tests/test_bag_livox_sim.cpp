@@ -1,5 +1,5 @@
 // `gcmap simulate --message livox`: the simulated drive as Livox CustomMsg, typed as each driver records
-// it (livox_ros_driver/CustomMsg in a ROS 1 bag, livox_ros_driver2/msg/CustomMsg in MCAP), reads back as
+// it (livox_ros_driver/CustomMsg in a ROS 1 bag, livox_ros_driver2/msg/CustomMsg in MCAP and db3), reads back as
 // the KITTI layout of the same seed does and maps as the drive written as PointCloud2 with Livox times.
 #include <gtest/gtest.h>
 
@@ -51,6 +51,7 @@ class LivoxSim : public ::testing::Test {
     simulate("kitti", "--format kitti");
     simulate("livox-bag", "--format bag --message livox --compression lz4");
     simulate("livox-mcap", "--format mcap --message livox --compression zstd");
+    simulate("livox-db3", "--format db3 --message livox");
     simulate("pc2-bag", "--format bag --time-field livox");
   }
   static void TearDownTestSuite() { delete dir_; }
@@ -60,7 +61,8 @@ class LivoxSim : public ::testing::Test {
   }
   static std::string out(const std::string& name) { return *dir_ / name; }
   static std::string bag(const std::string& name) {
-    return sim::simulated_bag_path(out(name), name.ends_with("mcap") ? BagFormat::mcap : BagFormat::ros1);
+    const BagFormat f = name.ends_with("mcap") ? BagFormat::mcap : name.ends_with("db3") ? BagFormat::db3 : BagFormat::ros1;
+    return sim::simulated_bag_path(out(name), f);
   }
   static TempDir* dir_;
 };
@@ -85,6 +87,7 @@ TEST_F(LivoxSim, TopicsAreTypedAsTheDriversRecordThem) {
                         "MSG: std_msgs/Header\nbuiltin_interfaces/Time stamp", "MSG: builtin_interfaces/Time\nint32 sec"})
     EXPECT_NE(mcap_bytes.find(s), std::string::npos) << s;
   EXPECT_EQ(mcap_bytes.find("uint32 seq"), std::string::npos);
+  EXPECT_EQ(open_bag(bag("livox-db3"))->topics().at(0).type, "livox_ros_driver2/msg/CustomMsg");
   EXPECT_NE(slurp(out("livox-bag") + "/scenario.json").find("/points: livox_ros_driver/CustomMsg"), std::string::npos);
 }
 
@@ -95,7 +98,7 @@ TEST_F(LivoxSim, ReadsBackAsTheKittiLayout) {
   BagScanRecords pc2_source(bag("pc2-bag"), {});
   const auto pc2 = read_all(pc2_source);
   ASSERT_EQ(pc2.size(), kFrames);
-  for (const std::string name : {"livox-bag", "livox-mcap"}) {
+  for (const std::string name : {"livox-bag", "livox-mcap", "livox-db3"}) {
     SCOPED_TRACE(name);
     EXPECT_EQ(describe_cloud_topic(*open_bag(bag(name)), "/points").time_field.rfind("offset_time", 0), 0u);
     BagScanRecords source(bag(name), {});
@@ -133,6 +136,7 @@ TEST_F(LivoxSim, MapsAsPointCloud2WithLivoxTimes) {
   EXPECT_EQ(std::count(reference.begin(), reference.end(), '\n'), std::ptrdiff_t(kFrames)) << reference;
   EXPECT_EQ(map("livox-bag"), reference);
   EXPECT_EQ(map("livox-mcap"), reference);
+  EXPECT_EQ(map("livox-db3"), reference);
 }
 
 TEST(LivoxSimCli, ImpossibleCombinationsAreRefused) {
