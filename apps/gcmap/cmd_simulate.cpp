@@ -13,7 +13,7 @@ void add_simulate(CLI::App& app, Runner& run) {
   auto realism = std::make_shared<std::string>();
   auto ideal = std::make_shared<bool>(false);
   auto format = std::make_shared<std::string>("kitti"), time_field = std::make_shared<std::string>("ouster"),
-       compression = std::make_shared<std::string>("none");
+       compression = std::make_shared<std::string>("none"), message = std::make_shared<std::string>("pointcloud2");
   auto* cmd = app.add_subcommand("simulate",
                                  "Generate a synthetic LiDAR sequence with exact ground truth (KITTI layout or a ROS bag)");
   cmd->add_option("-o,--output", *out,
@@ -21,12 +21,17 @@ void add_simulate(CLI::App& app, Runner& run) {
                   "with poses.txt, times.txt, scenario.json (and labels/) beside it")
       ->required();
   cmd->add_option("--format", *format,
-                  "kitti, mcap, db3 or bag (ROS 1): a bag holds /points (sensor_msgs/PointCloud2, header stamps as in "
-                  "times.txt)")
+                  "kitti, mcap, db3 or bag (ROS 1): a bag holds /points (sensor_msgs/PointCloud2 or, with --message "
+                  "livox, Livox CustomMsg; header stamps as in times.txt)")
+      ->capture_default_str();
+  auto* message_opt = cmd->add_option("--message", *message,
+                  "Bags: the scans as pointcloud2 (sensor_msgs/PointCloud2) or livox (Livox CustomMsg: "
+                  "livox_ros_driver/CustomMsg in a ROS 1 bag, livox_ros_driver2/msg/CustomMsg in mcap and db3; "
+                  "offset_time in ns after timebase = the stamp, reflectivity = 255 x intensity)")
       ->capture_default_str();
   auto* time_opt = cmd->add_option("--time-field", *time_field,
-                  "Bags, with motion distortion: the per-point time as ouster (t, uint32 ns), velodyne (time, float32 s), "
-                  "hesai (timestamp, float64 absolute s) or livox (offset_time, uint32 ns)")
+                  "PointCloud2 bags, with motion distortion: the per-point time as ouster (t, uint32 ns), velodyne (time, "
+                  "float32 s), hesai (timestamp, float64 absolute s) or livox (offset_time, uint32 ns)")
       ->capture_default_str();
   auto* compression_opt =
       cmd->add_option("--compression", *compression, "Bag chunks: none; mcap: zstd or lz4; bag: bz2 or lz4")
@@ -56,8 +61,11 @@ void add_simulate(CLI::App& app, Runner& run) {
       if (!realism->empty()) opt->realism = sim::parse_realism(*realism);
       sim::OutputOptions output;
       output.bag = sim::parse_output_format(*format, "--format");
-      if (!output.bag && (time_opt->count() || compression_opt->count()))
-        throw Error("--time-field and --compression apply to bags (--format mcap, db3 or bag), not to kitti");
+      if (!output.bag && (time_opt->count() || compression_opt->count() || message_opt->count()))
+        throw Error("--time-field, --compression and --message apply to bags (--format mcap, db3 or bag), not to kitti");
+      output.message = sim::parse_scan_message(*message, "--message");
+      if (output.message == sim::ScanMessage::livox_custom_msg && time_opt->count())
+        throw Error("--time-field picks a PointCloud2 field: --message livox has its own (offset_time, ns)");
       output.time = sim::parse_time_field(*time_field, "--time-field");
       output.compression = sim::parse_compression(*compression, output.bag, "--compression");
       Stopwatch w;

@@ -30,7 +30,8 @@ void store(char* p, T v, bool swap) {
   std::memcpy(p, &v, sizeof(T));
 }
 
-std::string encode_livox_scan(const PointCloud& cloud, int64_t stamp_ns, MessageEncoding enc) {
+// As the Livox drivers write it: timebase = header stamp, offset_time in ns after it.
+std::string encode_livox_scan(const PointCloud& cloud, int64_t stamp_ns, float reflectivity_scale, MessageEncoding enc) {
   LivoxMsg m;
   m.stamp_ns = stamp_ns;
   m.timebase = uint64_t(stamp_ns);
@@ -41,7 +42,8 @@ std::string encode_livox_scan(const PointCloud& cloud, int64_t stamp_ns, Message
     p.x = cloud.points[i].x();
     p.y = cloud.points[i].y();
     p.z = cloud.points[i].z();
-    p.reflectivity = cloud.has_intensities() ? uint8_t(std::clamp(cloud.intensities[i], 0.f, 255.f)) : 0;
+    const float r = cloud.has_intensities() ? cloud.intensities[i] * reflectivity_scale : 0.f;
+    p.reflectivity = r > 0 ? uint8_t(std::lround(std::min(r, 255.f))) : 0;  // NaN: 0
     p.offset_time = cloud.has_times() ? uint32_t(to_ns(cloud.times[i])) : 0;
   }
   return encode_livox(m, enc);
@@ -51,7 +53,7 @@ std::string encode_livox_scan(const PointCloud& cloud, int64_t stamp_ns, Message
 
 std::string encode_scan(const PointCloud& cloud, double stamp, const CloudLayout& L, MessageEncoding enc) {
   const int64_t stamp_ns = to_ns(stamp);
-  if (L.time == PointTimeConvention::livox_custom_msg) return encode_livox_scan(cloud, stamp_ns, enc);
+  if (L.time == PointTimeConvention::livox_custom_msg) return encode_livox_scan(cloud, stamp_ns, L.reflectivity_scale, enc);
   if (L.height == 0 || cloud.size() % L.height) throw Error("encode_scan: cloud size is not a multiple of height");
   PointCloud2Msg m;
   m.frame_id = "lidar";
@@ -164,7 +166,8 @@ ScanBagWriter::ScanBagWriter(const std::string& path, BagFormat format, const Cl
                              const BagWriterOptions& options, const std::string& topic)
     : writer_(open_bag_writer(path, format, options)), layout_(layout), encoding_(message_encoding(format)) {
   const bool livox = layout.time == PointTimeConvention::livox_custom_msg;
-  topic_ = writer_->add_topic(topic, livox ? "livox_ros_driver2/msg/CustomMsg" : "sensor_msgs/msg/PointCloud2");
+  const char* livox_type = format == BagFormat::ros1 ? "livox_ros_driver/msg/CustomMsg" : "livox_ros_driver2/msg/CustomMsg";
+  topic_ = writer_->add_topic(topic, livox ? livox_type : "sensor_msgs/msg/PointCloud2");
 }
 
 void ScanBagWriter::write(const PointCloud& cloud, double stamp) {

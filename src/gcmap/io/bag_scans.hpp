@@ -104,13 +104,15 @@ struct CloudLayout {
   uint32_t height = 1;           // > 1: organized, cloud.size() a multiple of it, padded point_step/row_step
   bool big_endian_data = false;  // PointCloud2 is_bigendian
   bool big_endian_cdr = false;   // CDR_BE encapsulation (ROS 2 formats)
+  float reflectivity_scale = 1;  // Livox CustomMsg: reflectivity = intensity x this, rounded, clamped to 0-255
 };
 
 // The serialized message for `cloud` (times in s after `stamp`); the header stamp is `stamp`
 // (sec_nsec: the end of the sweep, as Luminar writes it).
 std::string encode_scan(const PointCloud& cloud, double stamp, const CloudLayout& layout, MessageEncoding enc);
 
-// Writes scans as one topic of a bag.
+// Writes scans as one topic of a bag: sensor_msgs/PointCloud2, or Livox CustomMsg as its driver names it
+// (ROS 1: livox_ros_driver/CustomMsg, ROS 2: livox_ros_driver2/msg/CustomMsg).
 class ScanBagWriter {
  public:
   ScanBagWriter(const std::string& path, BagFormat format, const CloudLayout& layout, const BagWriterOptions& options = {},

@@ -51,8 +51,8 @@ class Ros1Writer : public BagWriter {
     std::string ros1_type = type;
     if (const size_t p = ros1_type.find("/msg/"); p != std::string::npos) ros1_type.erase(p, 4);
     const uint32_t id = uint32_t(connections_.size());
-    const std::string data = fields({{"topic", topic}, {"type", ros1_type}, {"md5sum", message_md5(type)},
-                                     {"message_definition", message_definition(type)}});
+    const std::string data = fields({{"topic", topic}, {"type", ros1_type}, {"md5sum", message_md5(ros1_type)},
+                                     {"message_definition", message_definition(ros1_type)}});
     connections_.push_back(record({{"op", bin<uint8_t>(7)}, {"conn", bin(id)}, {"topic", topic}}, data));
     return id;
   }

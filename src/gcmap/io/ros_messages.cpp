@@ -192,29 +192,41 @@ bool is_livox_type(std::string_view type) {
          type == "livox_ros_driver/msg/CustomMsg" || type == "livox_ros_driver2/msg/CustomMsg";
 }
 
+namespace {
+
+const char* const kRule = "================================================================================\n";
+
+// std_msgs/Header as the definition of a ROS 1 type ("pkg/Type") or a ROS 2 type ("pkg/msg/Type") needs it.
+std::string header_definition(bool ros2) {
+  if (!ros2) return std::string(kRule) + "MSG: std_msgs/Header\nuint32 seq\ntime stamp\nstring frame_id\n";
+  return std::string(kRule) + "MSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n" + kRule +
+         "MSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n";
+}
+
+}  // namespace
+
 std::string message_definition(std::string_view type) {
-  static const std::string header =
-      "MSG: std_msgs/Header\nuint32 seq\ntime stamp\nstring frame_id\n";
+  const bool ros2 = type.find("/msg/") != std::string_view::npos;
   if (is_pointcloud2_type(type))
     return "std_msgs/Header header\nuint32 height\nuint32 width\nsensor_msgs/PointField[] fields\nbool is_bigendian\n"
-           "uint32 point_step\nuint32 row_step\nuint8[] data\nbool is_dense\n"
-           "================================================================================\n" +
-           header +
-           "================================================================================\n"
+           "uint32 point_step\nuint32 row_step\nuint8[] data\nbool is_dense\n" +
+           header_definition(ros2) + kRule +
            "MSG: sensor_msgs/PointField\nuint8 INT8=1\nuint8 UINT8=2\nuint8 INT16=3\nuint8 UINT16=4\nuint8 INT32=5\n"
            "uint8 UINT32=6\nuint8 FLOAT32=7\nuint8 FLOAT64=8\nstring name\nuint32 offset\nuint8 datatype\nuint32 count\n";
-  if (is_livox_type(type))
-    return "std_msgs/Header header\nuint64 timebase\nuint32 point_num\nuint8 lidar_id\nuint8[3] rsvd\nCustomPoint[] points\n"
-           "================================================================================\n" +
-           header +
-           "================================================================================\n"
-           "MSG: livox_ros_driver/CustomPoint\nuint32 offset_time\nfloat32 x\nfloat32 y\nfloat32 z\nuint8 reflectivity\n"
-           "uint8 tag\nuint8 line\n";
+  if (is_livox_type(type)) {
+    const std::string_view package = type.substr(0, type.find('/'));  // livox_ros_driver or livox_ros_driver2
+    return "std_msgs/Header header\nuint64 timebase\nuint32 point_num\nuint8 lidar_id\nuint8[3] rsvd\nCustomPoint[] points\n" +
+           header_definition(ros2) + kRule + "MSG: " + std::string(package) +
+           "/CustomPoint\nuint32 offset_time\nfloat32 x\nfloat32 y\nfloat32 z\nuint8 reflectivity\nuint8 tag\nuint8 line\n";
+  }
   return "";
 }
 
 std::string message_md5(std::string_view type) {
-  return is_pointcloud2_type(type) ? "1158d486dd51d683ce2f1be655c3c181" : "*";
+  // ROS 1 md5sums (genmsg): the same for both Livox drivers, whose definitions are identical.
+  if (is_pointcloud2_type(type)) return "1158d486dd51d683ce2f1be655c3c181";
+  if (is_livox_type(type)) return "e4d6829bdfe657cb6c21a746c86b21a6";
+  return "*";
 }
 
 }  // namespace gcmap

@@ -57,7 +57,8 @@ std::string encode_livox(const LivoxMsg& m, MessageEncoding enc);
 // Message types as the bags name them (ROS 1 "pkg/Type", ROS 2 "pkg/msg/Type").
 bool is_pointcloud2_type(std::string_view type);
 bool is_livox_type(std::string_view type);
-// The .msg text and (ROS 1) md5sum the writers store with a topic of these types.
+// The .msg text (ROS 1 or ROS 2 dependencies, by the spelling of `type`) and the ROS 1 md5sum the
+// writers store with a topic of these types.
 std::string message_definition(std::string_view type);
 std::string message_md5(std::string_view type);
 

@@ -55,6 +55,8 @@ void write_kitti_scan(const fs::path& dir, size_t k, const PointCloud& c) {
 class FrameSink {
  public:
   FrameSink(const fs::path& dir, const Simulator& sim, const OutputOptions& out) : dir_(dir) {
+    if (out.message == ScanMessage::livox_custom_msg && !out.bag)
+      throw Error(dir.string() + ": Livox CustomMsg scans need a bag (mcap, db3 or ROS 1), not the KITTI layout");
     std::error_code ec;
     fs::create_directories(dir, ec);
     if (!ec && !out.bag) fs::create_directories(dir / "velodyne", ec);
@@ -64,6 +66,10 @@ class FrameSink {
     if (!out.bag) return;
     CloudLayout layout;
     layout.time = sim.realism().motion_distortion ? out.time : PointTimeConvention::none;
+    if (out.message == ScanMessage::livox_custom_msg) {
+      layout.time = PointTimeConvention::livox_custom_msg;  // offset_time 0 without motion distortion
+      layout.reflectivity_scale = 255;                       // the simulator's intensities are in [0, 1]
+    }
     BagWriterOptions wo;
     wo.compression = out.compression;
     bag_.emplace(simulated_bag_path(dir.string(), *out.bag), *out.bag, layout, wo);
@@ -136,8 +142,13 @@ void write_metadata(const fs::path& dir, const Simulator& sim, const SimulationC
   if (out.bag) {
     j["bag"] = fs::path(simulated_bag_path(dir.string(), *out.bag)).filename().string();
     j["bag_format"] = bag_format_name(*out.bag);
-    j["topic"] = "/points: sensor_msgs/PointCloud2, header stamps as in times.txt, recorded at the end of each sweep";
-    j["point_time_field"] = r.motion_distortion ? time_field_note(out.time) : "none";
+    const bool livox = out.message == ScanMessage::livox_custom_msg;
+    const std::string type = !livox ? "sensor_msgs/PointCloud2"
+                             : *out.bag == BagFormat::ros1 ? "livox_ros_driver/CustomMsg" : "livox_ros_driver2/msg/CustomMsg";
+    j["topic"] = "/points: " + type + ", header stamps as in times.txt, recorded at the end of each sweep";
+    j["point_time_field"] = livox ? "offset_time: uint32 ns after timebase, the header stamp (Livox CustomMsg)"
+                            : r.motion_distortion ? time_field_note(out.time) : "none";
+    if (livox) j["reflectivity"] = "uint8, the simulated intensity in [0, 1] x 255, rounded";
   }
   write_file_atomic((dir / "scenario.json").string(), [&](std::ostream& out) { out << j.dump() << "\n"; });
 }
@@ -168,6 +179,12 @@ PointTimeConvention parse_time_field(const std::string& text, const std::string&
   if (text == "hesai") return PointTimeConvention::hesai_timestamp;
   if (text == "livox") return PointTimeConvention::livox_offset_time;
   throw Error(key + ": expected ouster, velodyne, hesai or livox, got '" + text + "'");
+}
+
+ScanMessage parse_scan_message(const std::string& text, const std::string& key) {
+  if (text == "pointcloud2") return ScanMessage::pointcloud2;
+  if (text == "livox") return ScanMessage::livox_custom_msg;
+  throw Error(key + ": expected pointcloud2 or livox, got '" + text + "'");
 }
 
 Compression parse_compression(const std::string& text, std::optional<BagFormat> bag, const std::string& key) {

@@ -9,8 +9,14 @@
 
 namespace gcmap::sim {
 
+// The message type of a bag's scans.
+enum class ScanMessage { pointcloud2, livox_custom_msg };
+
 struct OutputOptions {
   std::optional<BagFormat> bag;  // none: the KITTI layout
+  // livox_custom_msg (bags only): livox_ros_driver/CustomMsg in a ROS 1 bag, livox_ros_driver2/msg/CustomMsg
+  // in mcap and db3; timebase the stamp, offset_time in ns, reflectivity = round(255 x intensity); `time` unused.
+  ScanMessage message = ScanMessage::pointcloud2;
   // The per-point time field of the bag's PointCloud2 (when the drive has motion distortion):
   // ouster_t, velodyne_time, hesai_timestamp or livox_offset_time.
   PointTimeConvention time = PointTimeConvention::ouster_t;
@@ -21,6 +27,8 @@ struct OutputOptions {
 std::optional<BagFormat> parse_output_format(const std::string& text, const std::string& key);
 // "ouster", "velodyne", "hesai" or "livox".
 PointTimeConvention parse_time_field(const std::string& text, const std::string& key);
+// "pointcloud2" or "livox".
+ScanMessage parse_scan_message(const std::string& text, const std::string& key);
 // "none", "zstd", "lz4" or "bz2", checked against what `bag` can hold.
 Compression parse_compression(const std::string& text, std::optional<BagFormat> bag, const std::string& key);
 
@@ -28,7 +36,8 @@ Compression parse_compression(const std::string& text, std::optional<BagFormat> 
 std::string simulated_bag_path(const std::string& dir, BagFormat format);
 
 // As write_simulation (simulator.hpp) for the KITTI layout. For a bag: one /points topic of
-// sensor_msgs/PointCloud2 (x, y, z, intensity float32 and the chosen time field), header stamps the
+// sensor_msgs/PointCloud2 (x, y, z, intensity float32 and the chosen time field) or of Livox
+// CustomMsg (Error for the KITTI layout), header stamps the
 // stamps of times.txt (the start of each sweep, 0.1 s apart from 0), recorded at the end of each
 // sweep; poses.txt, times.txt, scenario.json and labels/ in DIR beside the bag.
 size_t write_simulation(const std::string& dir, const SimulationConfig& config, const OutputOptions& output,
