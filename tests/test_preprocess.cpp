@@ -87,6 +87,33 @@ TEST(Covariance, PlaneLikeOnAPlaneAndSafeOnTinyClouds) {
   EXPECT_GT(tiny.covs[0].determinant(), 0.f);
 }
 
+// A beam whose elevation is off by d moves its point by range * d along the vertical plane of
+// the beam: on far ground that is nearly the surface normal, where plane-like covariances are
+// thinnest, so the uncertainty is added there (preprocess.elevation_sigma_deg).
+TEST(Covariance, ElevationUncertaintyGrowsWithRangeAlongTheBeamsVerticalPlane) {
+  PointCloud ground;
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<float> u(-40.f, 40.f);
+  for (int i = 0; i < 20000; ++i) ground.points.emplace_back(u(rng), u(rng), -1.7f);
+  PointCloud with = ground;
+  estimate_covariances(ground);
+  CovarianceConfig config;
+  config.elevation_sigma = 0.2 * M_PI / 180.0;
+  estimate_covariances(with, config);
+  double near = 0.0, far = 0.0;
+  for (size_t i = 0; i < ground.size(); i += 53) {
+    const Eigen::Vector3d p = ground.points[i].cast<double>();
+    const double h = p.head<2>().norm();
+    const Eigen::Vector3d v(-p.z() * p.x() / h, -p.z() * p.y() / h, h);  // d p / d elevation
+    const Eigen::Matrix3d added = (with.covs[i] - ground.covs[i]).cast<double>();
+    EXPECT_LT((added - config.elevation_sigma * config.elevation_sigma * v * v.transpose()).norm(), 1e-5) << p.transpose();
+    const double vertical = with.covs[i](2, 2);
+    if (h < 10.0) near = std::max(near, vertical);
+    if (h > 30.0) far = far == 0.0 ? vertical : std::min(far, vertical);
+  }
+  EXPECT_GT(far, 4.0 * near);  // far ground weighs less in height than near ground
+}
+
 TEST(VoxelMap, StoresMeanOfMeansAndMeanOfCovariances) {
   PointCloud c;
   c.points = {{0.1f, 0.1f, 0.1f}, {0.3f, 0.2f, 0.1f}, {1.5f, 0.1f, 0.1f}};

@@ -201,7 +201,15 @@ void estimate_covariances(PointCloud& cloud, const CovarianceConfig& config) {
       eig.computeDirect(cov);
       // Eigenvalues ascending: the smallest direction is the surface normal.
       const Eigen::Matrix3d& U = eig.eigenvectors();
-      cloud.covs[i] = (U * regularized.asDiagonal() * U.transpose()).cast<float>();
+      Eigen::Matrix3d C = U * regularized.asDiagonal() * U.transpose();
+      if (config.elevation_sigma > 0.0) {
+        const Eigen::Vector3d q = cloud.points[i].cast<double>();
+        const double h = std::max(q.head<2>().norm(), 1e-6);
+        // d q / d elevation: along the vertical plane of the beam, as long as the range.
+        const Eigen::Vector3d v(-q.z() * q.x() / h, -q.z() * q.y() / h, h);
+        C += config.elevation_sigma * config.elevation_sigma * v * v.transpose();
+      }
+      cloud.covs[i] = C.cast<float>();
     }
   });
 }

@@ -18,6 +18,9 @@ struct CovarianceConfig {
   int num_neighbors = 10;
   // Plane-like regularization (VGICP/GLIM): eigenvalues replaced by (epsilon, 1, 1).
   double epsilon = 1e-3;
+  // Beam elevation uncertainty (rad), for points still in the sensor frame: adds (range *
+  // sigma)^2 along the direction a change of elevation moves the point.
+  double elevation_sigma = 0.0;
 };
 
 // Per-point covariance from the k nearest neighbours, regularized plane-like. Points with fewer than

@@ -47,6 +47,7 @@ void visit(Config& c, Visitor&& v) {
   v("preprocess", "max_range", c.preprocess.max_range);
   v("preprocess", "downsample", c.preprocess.downsample);
   v("preprocess", "num_neighbors", c.preprocess.num_neighbors);
+  v("preprocess", "elevation_sigma_deg", c.preprocess.elevation_sigma_deg);
   v("preprocess", "kitti_vertical_correction", c.preprocess.kitti_vertical_correction);
   v("preprocess", "remove_dynamic_labels", c.preprocess.remove_dynamic_labels);
   v("preprocess", "deskew", c.preprocess.deskew);
@@ -216,6 +217,8 @@ void MappingConfig::validate() const {
   need(preprocess.min_range >= 0 && preprocess.max_range > preprocess.min_range, "preprocess.max_range must exceed preprocess.min_range >= 0");
   need(preprocess.downsample > 0, "preprocess.downsample must be positive");
   need(preprocess.num_neighbors >= 4, "preprocess.num_neighbors must be >= 4");
+  need(preprocess.elevation_sigma_deg >= 0 && preprocess.elevation_sigma_deg < 10,
+       "preprocess.elevation_sigma_deg must be in [0, 10)");
   need(odometry.voxel_resolution > 0, "odometry.voxel_resolution must be positive");
   need(odometry.start_voxel_resolution >= odometry.voxel_resolution,
        "odometry.start_voxel_resolution must be at least odometry.voxel_resolution");

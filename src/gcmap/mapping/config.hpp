@@ -32,6 +32,10 @@ struct PreprocessConfig {
   double max_range = 100.0;
   double downsample = 0.25;  // voxel size in m
   int num_neighbors = 10;    // covariance estimation
+  // Beam elevation uncertainty added to each point's covariance (range x sigma along the beam's
+  // vertical plane): a sensor with a per-beam elevation bias (factory calibration) makes far
+  // ground lie off its plane by range x bias. 0 = off.
+  double elevation_sigma_deg = 0.0;
   bool kitti_vertical_correction = true;  // 0.22 deg intrinsic correction, KITTI layouts only
   bool remove_dynamic_labels = true;      // SemanticKITTI moving classes, when labels/ exists
   // Motion compensation of scans with per-point times, by the odometry's constant-velocity motion.

@@ -1,5 +1,7 @@
 #include "gcmap/mapping/preprocess_scan.hpp"
 
+#include <cmath>
+
 #include "gcmap/core/preprocess.hpp"
 
 namespace gcmap {
@@ -8,6 +10,7 @@ PointCloud preprocess_scan(const PointCloud& raw, const PreprocessConfig& config
   PointCloud c = voxel_downsample(range_filter(raw, config.min_range, config.max_range), config.downsample);
   CovarianceConfig cc;
   cc.num_neighbors = config.num_neighbors;
+  cc.elevation_sigma = config.elevation_sigma_deg * M_PI / 180.0;
   estimate_covariances(c, cc);
   return c;
 }
