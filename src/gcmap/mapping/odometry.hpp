@@ -20,8 +20,9 @@ class Odometry {
   // registration fails (see estimate) gets the prediction and last_failed().
   Eigen::Isometry3d track(const std::shared_ptr<const PointCloud>& frame, std::optional<double> stamp = std::nullopt,
                           bool* ok = nullptr);
-  // What a prediction rests on: no motion known yet (the second frame, or after a gap of
-  // odometry.max_gap); the last motion over an equal interval; the last motion scaled to another.
+  // What a prediction rests on: no motion known (the second frame, after a gap of
+  // odometry.max_gap, or after 3 frames in a row placed by the prediction); the last motion over
+  // an equal interval (within 1.5x: driver jitter); the last motion scaled to another interval.
   enum class Guess { rest, steady, scaled };
   Guess guess_kind(std::optional<double> stamp = std::nullopt) const;
   // The two halves of track() for a usable frame: scan-to-model registration from a guess (no
