@@ -13,21 +13,6 @@
 namespace gcmap::test {
 namespace {
 
-struct Result {
-  int code;
-  std::string out, err;
-};
-
-Result run_gcmap(const std::string& args) {
-  TempDir tmp;
-  const int status = std::system((std::string(GCMAP_CLI) + " " + args + " >" + (tmp / "out") + " 2>" + (tmp / "err")).c_str());
-  auto slurp = [](const std::string& p) {
-    std::ifstream in(p);
-    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  };
-  return {WEXITSTATUS(status), slurp(tmp / "out"), slurp(tmp / "err")};
-}
-
 TEST(BagCli, InfoListsTopicsFieldsAndTimes) {
   TempDir dir;
   const std::string path = dir / "drive.mcap";
@@ -36,24 +21,24 @@ TEST(BagCli, InfoListsTopicsFieldsAndTimes) {
   ScanBagWriter w(path, BagFormat::mcap, layout);
   for (int k = 0; k < 3; ++k) w.write(make_scan(50, k), 1673400471.0 + 0.1 * k);
   w.close();
-  const Result table = run_gcmap("bag-info " + path);
+  const CliRun table = run_gcmap("bag-info " + path);
   ASSERT_EQ(table.code, 0) << table.err;
   EXPECT_NE(table.out.find("/points"), std::string::npos) << table.out;
   EXPECT_NE(table.out.find("sensor_msgs/msg/PointCloud2"), std::string::npos);
   EXPECT_NE(table.out.find("x float32, y float32, z float32, intensity float32, time float32"), std::string::npos) << table.out;
   EXPECT_NE(table.out.find("time (s after the header stamp)"), std::string::npos) << table.out;
   EXPECT_NE(table.out.find("2023-01-11 01:27:51"), std::string::npos) << table.out;
-  const Result json = run_gcmap("bag-info --json " + path);
+  const CliRun json = run_gcmap("bag-info --json " + path);
   ASSERT_EQ(json.code, 0) << json.err;
   EXPECT_NE(json.out.find("\"messages\":3"), std::string::npos) << json.out;
   EXPECT_NE(json.out.find("\"point_time\":\"time (s after the header stamp)\""), std::string::npos) << json.out;
 
-  const Result missing = run_gcmap("bag-info " + (dir / "missing.mcap"));
+  const CliRun missing = run_gcmap("bag-info " + (dir / "missing.mcap"));
   EXPECT_EQ(missing.code, 2);
   EXPECT_NE(missing.err.find("missing.mcap"), std::string::npos);
   std::string bytes = read_file(path);
   write_file_atomic(dir / "cut.mcap", [&](std::ostream& o) { o << bytes.substr(0, 100); });
-  const Result cut = run_gcmap("bag-info " + (dir / "cut.mcap"));
+  const CliRun cut = run_gcmap("bag-info " + (dir / "cut.mcap"));
   EXPECT_EQ(cut.code, 0) << cut.err;
   EXPECT_NE(cut.out.find("warning:"), std::string::npos) << cut.out;
 }
@@ -84,17 +69,17 @@ TEST(BagCli, MapReadsAnMcapRecordingEndToEnd) {
     }
     writer.close();
   }
-  const Result ok = run_gcmap("map " + (dir / "drive.mcap") + " -o " + (dir / "out") + " --quiet --no-render");
+  const CliRun ok = run_gcmap("map " + (dir / "drive.mcap") + " -o " + (dir / "out") + " --quiet --no-render");
   ASSERT_EQ(ok.code, 0) << ok.err;
   const Trajectory est = read_trajectory(dir / "out/trajectory.tum");
   ASSERT_EQ(est.size(), 15u);
   EXPECT_NEAR(est.stamps[3], 100.3, 1e-6);
   for (size_t f = 0; f < 15; ++f)
     EXPECT_LT(translation_error(est.poses[f], sim.poses().front().inverse() * sim.poses()[f]), 0.05) << f;
-  const Result wrong_topic = run_gcmap("map " + (dir / "drive.mcap") + " --topic /nope -o " + (dir / "o2"));
+  const CliRun wrong_topic = run_gcmap("map " + (dir / "drive.mcap") + " --topic /nope -o " + (dir / "o2"));
   EXPECT_EQ(wrong_topic.code, 2);
   EXPECT_NE(wrong_topic.err.find("/os/points"), std::string::npos) << wrong_topic.err;  // lists the topics there are
-  const Result folder = run_gcmap("map " + (dir / "out") + " --topic /x -o " + (dir / "o3"));
+  const CliRun folder = run_gcmap("map " + (dir / "out") + " --topic /x -o " + (dir / "o3"));
   EXPECT_EQ(folder.code, 2);
   EXPECT_NE(folder.err.find("apply to bags"), std::string::npos) << folder.err;
 }

@@ -17,22 +17,6 @@
 namespace gcmap::test {
 namespace {
 
-struct CliRun {
-  int code;
-  std::string out, err;
-};
-
-std::string slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
-
-CliRun run_gcmap(const std::string& args) {
-  TempDir tmp;
-  const int status = std::system((std::string(GCMAP_CLI) + " " + args + " >" + (tmp / "out") + " 2>" + (tmp / "err")).c_str());
-  return {WEXITSTATUS(status), slurp(tmp / "out"), slurp(tmp / "err")};
-}
-
 // The Livox-Avia-like rosette on the first frames of the city drive, motion distortion only (so that
 // points carry times).
 const std::string kSim = " --scenario city --sensor avia --frames 10 --seed 7 --realism motion_distortion";

@@ -18,22 +18,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct CliRun {
-  int code;
-  std::string out, err;
-};
-
-std::string slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
-
-CliRun run_gcmap(const std::string& args) {
-  TempDir tmp;
-  const int status = std::system((std::string(GCMAP_CLI) + " " + args + " >" + (tmp / "out") + " 2>" + (tmp / "err")).c_str());
-  return {WEXITSTATUS(status), slurp(tmp / "out"), slurp(tmp / "err")};
-}
-
 // The first 20 frames of the city drive (the `small` loop would be spread over 20 frames, 9 m apart),
 // a 16-beam sensor, motion distortion only (so that points carry times).
 const std::string kSim = " --scenario city --sensor vlp16 --frames 20 --seed 5 --realism motion_distortion";

@@ -1,7 +1,12 @@
 #pragma once
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
+
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <random>
 #include <string>
 
@@ -42,5 +47,24 @@ struct TempDir {
   ~TempDir() { std::filesystem::remove_all(path); }
   std::string operator/(const std::string& name) const { return (path / name).string(); }
 };
+
+inline std::string slurp(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+#ifdef GCMAP_CLI
+struct CliRun {
+  int code;
+  std::string out, err;
+};
+
+// The gcmap command line with `args`: its exit code and what it printed.
+inline CliRun run_gcmap(const std::string& args) {
+  TempDir tmp;
+  const int status = std::system((std::string(GCMAP_CLI) + " " + args + " >" + (tmp / "out") + " 2>" + (tmp / "err")).c_str());
+  return {WEXITSTATUS(status), slurp(tmp / "out"), slurp(tmp / "err")};
+}
+#endif
 
 }  // namespace gcmap::test
