@@ -87,7 +87,7 @@ struct LocalMappingConfig {
 
 struct GlobalMappingConfig {
   double th_min = 0.025;          // th_min_G: overlap needed for a matching-cost factor
-  double voxel_resolution = 1.0;  // r_G
+  double voxel_resolution = 0.5;  // r_G (see README: 1 m tilts noisy maps)
   GlobalMode mode = GlobalMode::full;
   int window = 5;                 // sliding-window: connect to this many predecessors
   FactorSource factor = FactorSource::vgicp;
