@@ -21,7 +21,7 @@ namespace {
 
 // Options shared by map and demo that override the config file.
 struct Overrides {
-  std::string config_file, global_mode, factor;
+  std::string config_file, global_mode, factor, elevation_calibration;
   int window = -1;
   double map_resolution = -1.0;
   bool pcd = false;
@@ -44,6 +44,8 @@ struct Overrides {
     cmd->add_flag("--no-deskew", no_deskew, "No motion compensation of scans with per-point times (preprocess.deskew: false)");
     cmd->add_flag("--deskew-from-azimuth", deskew_from_azimuth,
                   "Scans without per-point times: derive them from the azimuth of a spinning sensor (preprocess.deskew_from_azimuth)");
+    cmd->add_option("--elevation-calibration", elevation_calibration,
+                    "Per-beam elevation offsets from `gcmap calibrate` (preprocess.elevation_calibration)");
     cmd->add_option("--threads", threads, "Worker threads (0 = all cores)")->capture_default_str();
   }
   MappingConfig resolve() const {
@@ -56,6 +58,7 @@ struct Overrides {
     if (no_explicit_loops) c.loop.enabled = false;
     if (no_deskew) c.preprocess.deskew = false;
     if (deskew_from_azimuth) c.preprocess.deskew_from_azimuth = true;
+    if (!elevation_calibration.empty()) c.preprocess.elevation_calibration = elevation_calibration;
     try {
       c.validate();
     } catch (const Error& e) {

@@ -69,30 +69,7 @@ class SignalScope {
   struct sigaction old_int_ {}, old_term_ {};
 };
 
-// A sequence folder or a ROS bag.
-struct Input {
-  std::unique_ptr<ScanSource> source;
-  bool kitti_hdl64 = false;
-  int frame_offset = 0;  // added to frame numbers in graph.json
-};
 
-Input open_input(const MapRunOptions& o) {
-  if (o.start < 0) throw Error("--start: must be >= 0");
-  if (o.max_frames < 0) throw Error("--max-frames: must be >= 0");
-  if (is_bag_path(o.input)) {
-    if (o.start_time < 0 || o.duration < 0) throw Error("--start-time and --duration must be >= 0");
-    BagScanOptions bo;
-    bo.topic = o.topic;
-    bo.start_time = o.start_time;
-    if (o.duration > 0) bo.duration = o.duration;
-    return {std::make_unique<BagScanRecords>(o.input, bo, o.start, o.max_frames), false, o.start};
-  }
-  if (!o.topic.empty() || o.start_time != 0 || o.duration != 0)
-    throw Error("--topic, --start-time and --duration apply to bags, not to " + o.input);
-  auto folder = std::make_unique<FolderScanSource>(o.input, o.start, o.max_frames);
-  const bool kitti = folder->kitti_hdl64();
-  return {std::move(folder), kitti, o.start};
-}
 
 void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapRunOptions& o, int signal,
                    const std::vector<std::string>& input_warnings) {
@@ -135,6 +112,24 @@ std::string progress_detail(const MappingPipeline& p) {
 }
 
 }  // namespace
+
+Input open_input(const MapRunOptions& o) {
+  if (o.start < 0) throw Error("--start: must be >= 0");
+  if (o.max_frames < 0) throw Error("--max-frames: must be >= 0");
+  if (is_bag_path(o.input)) {
+    if (o.start_time < 0 || o.duration < 0) throw Error("--start-time and --duration must be >= 0");
+    BagScanOptions bo;
+    bo.topic = o.topic;
+    bo.start_time = o.start_time;
+    if (o.duration > 0) bo.duration = o.duration;
+    return {std::make_unique<BagScanRecords>(o.input, bo, o.start, o.max_frames), false, o.start};
+  }
+  if (!o.topic.empty() || o.start_time != 0 || o.duration != 0)
+    throw Error("--topic, --start-time and --duration apply to bags, not to " + o.input);
+  auto folder = std::make_unique<FolderScanSource>(o.input, o.start, o.max_frames);
+  const bool kitti = folder->kitti_hdl64();
+  return {std::move(folder), kitti, o.start};
+}
 
 MapRunResult run_mapping(const MapRunOptions& o) {
   o.config.validate();

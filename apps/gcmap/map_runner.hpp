@@ -1,6 +1,8 @@
 #pragma once
+#include <memory>
 #include <string>
 
+#include "gcmap/core/scan_source.hpp"
 #include "gcmap/graph/backend.hpp"
 #include "gcmap/mapping/config.hpp"
 
@@ -21,6 +23,16 @@ struct MapRunResult {
   double seconds = 0.0, fps = 0.0;
   int signal = 0;  // SIGINT or SIGTERM when interrupted (outputs are then partial)
 };
+
+// A sequence folder or a ROS bag.
+struct Input {
+  std::unique_ptr<ScanSource> source;
+  bool kitti_hdl64 = false;
+  int frame_offset = 0;  // added to frame numbers in graph.json
+};
+
+// Opens options.input from options.start for options.max_frames (bags: topic and time window).
+Input open_input(const MapRunOptions& options);
 
 // Reads the input, runs the mapping pipeline and writes every output into options.output.
 MapRunResult run_mapping(const MapRunOptions& options);

@@ -48,6 +48,7 @@ void visit(Config& c, Visitor&& v) {
   v("preprocess", "downsample", c.preprocess.downsample);
   v("preprocess", "num_neighbors", c.preprocess.num_neighbors);
   v("preprocess", "elevation_sigma_deg", c.preprocess.elevation_sigma_deg);
+  v("preprocess", "elevation_calibration", c.preprocess.elevation_calibration);
   v("preprocess", "kitti_vertical_correction", c.preprocess.kitti_vertical_correction);
   v("preprocess", "remove_dynamic_labels", c.preprocess.remove_dynamic_labels);
   v("preprocess", "deskew", c.preprocess.deskew);
@@ -190,6 +191,13 @@ MappingConfig MappingConfig::parse(const std::string& text, const std::string& p
   return c;
 }
 
+// YAML single-quoted scalar: a path may hold ': ' or '#', and an empty one must stay a string.
+std::string single_quoted(const std::string& text) {
+  std::string out = "'";
+  for (const char ch : text) out += ch == '\'' ? std::string("''") : std::string(1, ch);
+  return out + "'";
+}
+
 std::string MappingConfig::to_yaml() const {
   std::ostringstream out;
   std::string current;
@@ -204,6 +212,7 @@ std::string MappingConfig::to_yaml() const {
     if constexpr (std::is_same_v<T, bool>) out << (field ? "true" : "false");
     else if constexpr (std::is_enum_v<T>) out << to_string(field);
     else if constexpr (std::is_floating_point_v<T>) out << format_double(field);
+    else if constexpr (std::is_same_v<T, std::string>) out << single_quoted(field);
     else out << field;
     out << "\n";
   });
@@ -290,6 +299,9 @@ T convert(const MappingConfig::Value& value, const std::string& key) {
     if (const auto* d = std::get_if<double>(&value)) return *d;
     if (const auto* i = std::get_if<int>(&value)) return *i;
     throw wrong("a number");
+  } else if constexpr (std::is_same_v<T, std::string>) {
+    if (const auto* text = std::get_if<std::string>(&value)) return *text;
+    throw wrong("a file name");
   } else {
     const auto* text = std::get_if<std::string>(&value);
     if (!text) throw wrong("a name");

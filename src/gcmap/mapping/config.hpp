@@ -36,6 +36,9 @@ struct PreprocessConfig {
   // vertical plane): a sensor with a per-beam elevation bias (factory calibration) makes far
   // ground lie off its plane by range x bias. 0 = off.
   double elevation_sigma_deg = 0.0;
+  // A file of per-beam elevation offsets (`gcmap calibrate`, mapping/elevation_calibration.hpp)
+  // applied to every raw scan; empty: none.
+  std::string elevation_calibration;
   bool kitti_vertical_correction = true;  // 0.22 deg intrinsic correction, KITTI layouts only
   bool remove_dynamic_labels = true;      // SemanticKITTI moving classes, when labels/ exists
   // Motion compensation of scans with per-point times, by the odometry's constant-velocity motion.

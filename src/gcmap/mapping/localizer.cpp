@@ -25,7 +25,7 @@ Localizer::Localizer(std::shared_ptr<const PriorMap> prior, const MappingConfig&
     : prior_(std::move(prior)),
       config_(config),
       backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
-      options_(options),
+      options_(with_elevation_calibration(std::move(options), config.preprocess)),
       odometry_(config.odometry) {
   config_.validate();
   if (!prior_ || prior_->submaps.empty()) throw Error("localize: the prior map has no submaps");

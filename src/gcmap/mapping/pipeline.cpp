@@ -39,6 +39,13 @@ void remove_moving_labels(PointCloud& c) {
 
 }  // namespace
 
+PipelineOptions with_elevation_calibration(PipelineOptions options, const PreprocessConfig& config) {
+  if (!options.elevation_calibration && !config.elevation_calibration.empty())
+    options.elevation_calibration =
+        std::make_shared<const ElevationCalibration>(ElevationCalibration::load(config.elevation_calibration));
+  return options;
+}
+
 void times_from_azimuth(PointCloud& cloud, const PreprocessConfig& config) {
   const double start = config.sweep_start_deg * M_PI / 180.0;
   // float(period * fraction) may round up to the period itself: the last float below it instead.
@@ -57,7 +64,7 @@ MappingPipeline::MappingPipeline(const MappingConfig& config, std::shared_ptr<Li
                                  PipelineOptions options)
     : config_(config),
       backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
-      options_(options),
+      options_(with_elevation_calibration(std::move(options), config.preprocess)),
       odometry_(config.odometry),
       mapper_(config, backend_) {}
 
@@ -81,6 +88,7 @@ PreparedScan prepare_scan(PointCloud raw, double stamp, const MappingConfig& con
   if (config.preprocess.remove_dynamic_labels && raw.has_labels()) remove_moving_labels(raw);
   raw.labels.clear();  // not averaged per voxel: nothing downstream reads them
   if (options.kitti_hdl64 && config.preprocess.kitti_vertical_correction) kitti_vertical_correction(raw);
+  if (options.elevation_calibration) options.elevation_calibration->correct(raw);
   // Range filtering drops NaN points too; what is left of a NaN-only scan is empty (unusable).
   out.cloud = std::make_shared<PointCloud>(preprocess_scan(raw, config.preprocess));
   out.preprocess_ms = w.ms();

@@ -8,6 +8,7 @@
 #include <optional>
 
 #include "gcmap/core/scan_source.hpp"
+#include "gcmap/mapping/elevation_calibration.hpp"
 #include "gcmap/mapping/mapper.hpp"
 #include "gcmap/mapping/odometry.hpp"
 
@@ -17,7 +18,14 @@ struct PipelineOptions {
   // The scans are KITTI's HDL-64 recordings: the 0.22 deg elevation correction applies (when
   // preprocess.kitti_vertical_correction is on).
   bool kitti_hdl64 = false;
+  // Per-beam elevation offsets for the raw scans; when null, loaded from
+  // preprocess.elevation_calibration (see with_elevation_calibration).
+  std::shared_ptr<const ElevationCalibration> elevation_calibration;
 };
+
+// The options with the calibration file named by config.elevation_calibration loaded, unless they
+// carry one. Throws Error naming the file.
+PipelineOptions with_elevation_calibration(PipelineOptions options, const PreprocessConfig& config);
 
 // One scan's outcome.
 struct Frame {

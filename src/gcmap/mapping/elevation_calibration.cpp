@@ -1,0 +1,205 @@
+#include "gcmap/mapping/elevation_calibration.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Eigenvalues>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <fstream>
+#include <sstream>
+
+#include "gcmap/core/error.hpp"
+#include "gcmap/core/gaussian_voxel_map.hpp"
+
+namespace gcmap {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+// Bins narrower than the 0.33 deg spacing of an HDL-64's upper beams, centred on whole tenths
+// (beam tables are often round numbers: none sits on a border).
+constexpr double kBin = 0.1 * kDeg, kLowest = -45.05 * kDeg;
+constexpr int kBins = 901;
+constexpr double kMaxOffset = 2.0 * kDeg;
+constexpr double kHuber = 3.0;       // on the whitened point-to-plane distance
+constexpr double kMinNormalZ = 0.9;  // level ground only (within 26 deg)
+
+int bin_of(double elevation) {
+  const int b = static_cast<int>(std::floor((elevation - kLowest) / kBin));
+  return b >= 0 && b < kBins ? b : -1;
+}
+
+// The point turned about the horizontal axis across its azimuth: elevation + delta, same range.
+Eigen::Vector3f raised(const Eigen::Vector3f& p, double delta) {
+  const double h = std::hypot(p.x(), p.y()), r = p.cast<double>().norm();
+  const double e = std::atan2(static_cast<double>(p.z()), h) + delta, s = r * std::cos(e) / h;
+  return {static_cast<float>(p.x() * s), static_cast<float>(p.y() * s), static_cast<float>(r * std::sin(e))};
+}
+
+// d p / d elevation: along the beam's vertical plane, as long as the horizontal range.
+Eigen::Vector3d elevation_direction(const Eigen::Vector3d& p) {
+  const double h = p.head<2>().norm();
+  return {-p.z() * p.x() / h, -p.z() * p.y() / h, h};
+}
+
+struct Normals {
+  std::vector<Eigen::Vector3d> n;
+  std::vector<double> variance;  // along n
+};
+
+Normals level_normals(const GaussianVoxelMap& ground) {
+  Normals out;
+  out.n.resize(ground.num_voxels());
+  out.variance.resize(ground.num_voxels());
+  tbb::parallel_for(size_t{0}, ground.num_voxels(), [&](size_t v) {
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+    eig.computeDirect(ground.cov(static_cast<int>(v)).cast<double>());
+    out.n[v] = eig.eigenvectors().col(0);
+    out.variance[v] = std::abs(out.n[v].z()) >= kMinNormalZ ? eig.eigenvalues()(0) : -1.0;
+  });
+  return out;
+}
+
+}  // namespace
+
+ElevationCalibration::ElevationCalibration() : offset_(kBins, 0.0) {}
+
+bool ElevationCalibration::empty() const {
+  for (const double o : offset_)
+    if (o != 0.0) return false;
+  return true;
+}
+
+double ElevationCalibration::offset(double elevation) const {
+  const int b = bin_of(elevation);
+  return b < 0 ? 0.0 : offset_[b];
+}
+
+std::vector<int16_t> ElevationCalibration::bins(const PointCloud& cloud) {
+  std::vector<int16_t> out(cloud.size(), -1);
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3f& p = cloud.points[i];
+    const double h = std::hypot(p.x(), p.y());
+    if (h > 1e-3) out[i] = static_cast<int16_t>(bin_of(std::atan2(static_cast<double>(p.z()), h)));
+  }
+  return out;
+}
+
+void ElevationCalibration::correct(PointCloud& cloud) const {
+  const std::vector<int16_t> b = bins(cloud);
+  for (size_t i = 0; i < cloud.size(); ++i)
+    if (b[i] >= 0 && offset_[b[i]] != 0.0) cloud.points[i] = raised(cloud.points[i], offset_[b[i]]);
+}
+
+std::string ElevationCalibration::to_text() const {
+  std::ostringstream s;
+  s << "# gcmap elevation calibration: measured elevation (deg), offset to add (deg)\n";
+  char line[64];
+  for (int b = 0; b < kBins; ++b) {
+    if (offset_[b] == 0.0) continue;
+    std::snprintf(line, sizeof line, "%.2f %.5f\n", (kLowest + (b + 0.5) * kBin) / kDeg, offset_[b] / kDeg);
+    s << line;
+  }
+  return s.str();
+}
+
+ElevationCalibration ElevationCalibration::parse(const std::string& text, const std::string& name) {
+  ElevationCalibration c;
+  std::istringstream in(text);
+  std::string line;
+  for (int n = 1; std::getline(in, line); ++n) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream fields(line);
+    double elevation = NAN, offset = NAN;
+    std::string rest;
+    const bool ok = static_cast<bool>(fields >> elevation >> offset) && !(fields >> rest);
+    const int b = ok && std::isfinite(elevation) ? bin_of(elevation * kDeg) : -1;
+    if (b < 0 || !std::isfinite(offset) || std::abs(offset * kDeg) > kMaxOffset)
+      throw Error(name + ": line " + std::to_string(n) +
+                  ": expected \"elevation_deg offset_deg\" (elevation within +-45, offset within +-2)");
+    c.offset_[b] = offset * kDeg;
+  }
+  return c;
+}
+
+ElevationCalibration ElevationCalibration::load(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw Error(path + ": cannot open the elevation calibration");
+  std::ostringstream s;
+  s << f.rdbuf();
+  return parse(s.str(), path);
+}
+
+namespace {
+
+// Per bin Gauss-Newton sums of one scan, or of all (added in scan order: the same result for any
+// thread count).
+struct BinSums {
+  std::vector<double> info = std::vector<double>(kBins), grad = std::vector<double>(kBins);
+  std::vector<int> count = std::vector<int>(kBins);
+  void add(int b, double w, double j, double e) { info[b] += w * j * j, grad[b] += w * j * e, ++count[b]; }
+  void add(const BinSums& o) {
+    for (int b = 0; b < kBins; ++b) info[b] += o.info[b], grad[b] += o.grad[b], count[b] += o.count[b];
+  }
+};
+
+using Corrected = std::function<Eigen::Vector3f(const CalibrationScan&, size_t)>;
+
+BinSums total(const std::vector<BinSums>& per_scan) {
+  BinSums all;
+  for (const BinSums& b : per_scan) all.add(b);
+  return all;
+}
+
+// Every point against the level ground that the near points of all scans make in the world.
+BinSums world_sums(const std::vector<CalibrationScan>& scans, const Corrected& corrected, const CalibrationEstimate& o) {
+  GaussianVoxelMap ground(o.voxel_resolution);
+  for (const CalibrationScan& s : scans) {
+    PointCloud near;
+    for (size_t i = 0; i < s.cloud.size(); ++i) {
+      if (s.cloud.points[i].norm() >= o.near_range) continue;
+      near.points.push_back(corrected(s, i));
+      near.covs.push_back(s.cloud.covs[i]);
+    }
+    ground.insert(near, s.T_world_sensor);
+  }
+  ground.finalize();
+  const Normals normals = level_normals(ground);
+  std::vector<BinSums> sums(scans.size());
+  tbb::parallel_for(size_t{0}, scans.size(), [&](size_t k) {
+    const CalibrationScan& s = scans[k];
+    const Eigen::Matrix3d R = s.T_world_sensor.linear();
+    for (size_t i = 0; i < s.cloud.size(); ++i) {
+      if (s.bins[i] < 0) continue;
+      const Eigen::Vector3d p = corrected(s, i).cast<double>(), q = s.T_world_sensor * p;
+      const int v = ground.lookup(q.cast<float>());
+      if (v < 0 || normals.variance[v] < 0.0) continue;
+      const Eigen::Vector3d& n = normals.n[v];
+      const double variance = normals.variance[v] + n.dot(R * s.cloud.covs[i].cast<double>() * R.transpose() * n);
+      const double e = n.dot(ground.mean(v).cast<double>() - q), d = std::abs(e) / std::sqrt(variance);
+      sums[k].add(s.bins[i], (d > kHuber ? kHuber / d : 1.0) / variance, n.dot(R * elevation_direction(p)), e);
+    }
+  });
+  return total(sums);
+}
+
+}  // namespace
+
+ElevationCalibration ElevationCalibration::estimate(const std::vector<CalibrationScan>& scans,
+                                                    const CalibrationEstimate& options) {
+  ElevationCalibration c;
+  const Corrected corrected = [&c](const CalibrationScan& s, size_t i) {
+    return s.bins[i] >= 0 && c.offset_[s.bins[i]] != 0.0 ? raised(s.cloud.points[i], c.offset_[s.bins[i]])
+                                                         : s.cloud.points[i];
+  };
+  for (int it = 0; it < options.iterations; ++it) {
+    const BinSums sums = world_sums(scans, corrected, options);
+    for (int b = 0; b < kBins; ++b) {
+      if (sums.count[b] < options.min_points || sums.info[b] <= 0.0) continue;
+      c.offset_[b] = std::clamp(c.offset_[b] + sums.grad[b] / sums.info[b], -kMaxOffset, kMaxOffset);
+    }
+  }
+  return c;
+}
+
+}  // namespace gcmap
