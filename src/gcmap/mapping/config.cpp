@@ -106,6 +106,7 @@ void visit(Config& c, Visitor&& v) {
   v("localize", "min_overlap", c.localize.min_overlap);
   v("localize", "submap_radius", c.localize.submap_radius);
   v("localize", "min_inlier_fraction", c.localize.min_inlier_fraction);
+  v("localize", "max_inlier_rmse", c.localize.max_inlier_rmse);
   v("localize", "relocalize_every", c.localize.relocalize_every);
   v("merge", "max_descriptor_distance", c.merge.max_descriptor_distance);
   v("merge", "max_verifications", c.merge.max_verifications);
@@ -265,6 +266,7 @@ void MappingConfig::validate() const {
   need(localize.min_overlap > 0 && localize.min_overlap <= 1, "localize.min_overlap must be in (0, 1]");
   need(localize.submap_radius > 0, "localize.submap_radius must be positive");
   need(localize.min_inlier_fraction > 0 && localize.min_inlier_fraction <= 1, "localize.min_inlier_fraction must be in (0, 1]");
+  need(localize.max_inlier_rmse > 0, "localize.max_inlier_rmse must be positive");
   need(localize.relocalize_every >= 1, "localize.relocalize_every must be >= 1");
   need(merge.max_descriptor_distance > 0 && merge.max_descriptor_distance <= 1, "merge.max_descriptor_distance must be in (0, 1]");
   need(merge.max_verifications >= 1 && merge.max_iterations >= 1, "merge.max_verifications and merge.max_iterations must be >= 1");

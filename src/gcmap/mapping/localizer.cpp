@@ -116,6 +116,7 @@ std::optional<Eigen::Isometry3d> Localizer::global_initialization(const PointClo
   const Eigen::Isometry3d init = s.T_submap_keyframe[k] * Eigen::Isometry3d(Eigen::AngleAxisd(r.match.yaw, Eigen::Vector3d::UnitZ()));
   LoopConfig lc = config_.loop;
   lc.min_inlier_fraction = config_.localize.min_inlier_fraction;
+  lc.max_inlier_rmse = config_.localize.max_inlier_rmse;
   const LoopVerification v = verify_loop(cloud, *s.cloud, init, lc);
   if (!v.accepted) return std::nullopt;
   return prior_->T_map_submap[j] * v.T_target_source;
