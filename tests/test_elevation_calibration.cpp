@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/mapping/elevation_calibration.hpp"
@@ -41,6 +42,9 @@ TEST(ElevationCalibration, CorrectionTurnsPointsUpByTheirBinsOffsetKeepingRangeA
   const double el = -2.0 * kDeg, az = 0.7;
   cloud.points.emplace_back(40.0 * std::cos(el) * std::cos(az), 40.0 * std::cos(el) * std::sin(az), 40.0 * std::sin(el));
   cloud.points.emplace_back(10.f, 0.f, 1.f);  // another bin: untouched
+  const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
+  cloud.points.emplace_back(inf, 0.f, nan);  // raw scans hold such points: no bin
+  cloud.points.emplace_back(0.f, 0.f, -3.f);  // on the axis: no elevation
   const PointCloud before = cloud;
   c.correct(cloud);
   const Eigen::Vector3d p = cloud.points[0].cast<double>();
@@ -48,6 +52,8 @@ TEST(ElevationCalibration, CorrectionTurnsPointsUpByTheirBinsOffsetKeepingRangeA
   EXPECT_NEAR(std::atan2(p.y(), p.x()), az, 1e-6);
   EXPECT_NEAR(std::atan2(p.z(), p.head<2>().norm()) / kDeg, -1.5, 1e-5);
   EXPECT_EQ(cloud.points[1], before.points[1]);
+  EXPECT_EQ(ElevationCalibration::bins(cloud)[2], -1);
+  EXPECT_EQ(cloud.points[3], before.points[3]);
 }
 
 // Every 3rd of the first 150 `city` frames with only the calibration errors, placed by the truth.

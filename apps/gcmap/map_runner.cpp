@@ -69,8 +69,6 @@ class SignalScope {
   struct sigaction old_int_ {}, old_term_ {};
 };
 
-
-
 void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapRunOptions& o, int signal,
                    const std::vector<std::string>& input_warnings) {
   write_folder_contents_atomic(o.output, [&](const std::string& staging) {

@@ -192,12 +192,16 @@ MappingConfig MappingConfig::parse(const std::string& text, const std::string& p
   return c;
 }
 
+namespace {
+
 // YAML single-quoted scalar: a path may hold ': ' or '#', and an empty one must stay a string.
 std::string single_quoted(const std::string& text) {
   std::string out = "'";
   for (const char ch : text) out += ch == '\'' ? std::string("''") : std::string(1, ch);
   return out + "'";
 }
+
+}  // namespace
 
 std::string MappingConfig::to_yaml() const {
   std::ostringstream out;

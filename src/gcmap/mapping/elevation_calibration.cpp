@@ -25,6 +25,7 @@ constexpr double kHuber = 3.0;       // on the whitened point-to-plane distance
 constexpr double kMinNormalZ = 0.9;  // level ground only (within 26 deg)
 
 int bin_of(double elevation) {
+  if (!std::isfinite(elevation)) return -1;  // raw scans may hold NaN or infinite points
   const int b = static_cast<int>(std::floor((elevation - kLowest) / kBin));
   return b >= 0 && b < kBins ? b : -1;
 }
@@ -32,6 +33,7 @@ int bin_of(double elevation) {
 // The point turned about the horizontal axis across its azimuth: elevation + delta, same range.
 Eigen::Vector3f raised(const Eigen::Vector3f& p, double delta) {
   const double h = std::hypot(p.x(), p.y()), r = p.cast<double>().norm();
+  if (h < 1e-6) return p;  // binned away from the axis, but deskewing moved it there
   const double e = std::atan2(static_cast<double>(p.z()), h) + delta, s = r * std::cos(e) / h;
   return {static_cast<float>(p.x() * s), static_cast<float>(p.y() * s), static_cast<float>(r * std::sin(e))};
 }
@@ -172,6 +174,7 @@ BinSums world_sums(const std::vector<CalibrationScan>& scans, const Corrected& c
     for (size_t i = 0; i < s.cloud.size(); ++i) {
       if (s.bins[i] < 0) continue;
       const Eigen::Vector3d p = corrected(s, i).cast<double>(), q = s.T_world_sensor * p;
+      if (p.head<2>().norm() < 1e-3) continue;
       const int v = ground.lookup(q.cast<float>());
       if (v < 0 || normals.variance[v] < 0.0) continue;
       const Eigen::Vector3d& n = normals.n[v];
