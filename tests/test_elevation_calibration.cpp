@@ -24,7 +24,7 @@ TEST(ElevationCalibration, TextRoundTripAndErrorsNameTheLine) {
   EXPECT_EQ(c.offset(-2.1 * kDeg), 0.0);
   const ElevationCalibration back = ElevationCalibration::parse(c.to_text(), "again");
   EXPECT_NEAR(back.offset(1.33 * kDeg) / kDeg, 0.102, 1e-5);
-  EXPECT_TRUE(ElevationCalibration().empty());
+  EXPECT_EQ(ElevationCalibration().offset(-2.0 * kDeg), 0.0);
   for (const char* bad : {"-2.0\n", "-2.0 x\n", "-2.0 0.1 7\n", "60 0.1\n", "-2.0 5\n", "nan 0.1\n"}) {
     try {
       ElevationCalibration::parse(std::string("# ok\n") + bad, "cal.txt");

@@ -66,12 +66,6 @@ Normals level_normals(const GaussianVoxelMap& ground) {
 
 ElevationCalibration::ElevationCalibration() : offset_(kBins, 0.0) {}
 
-bool ElevationCalibration::empty() const {
-  for (const double o : offset_)
-    if (o != 0.0) return false;
-  return true;
-}
-
 double ElevationCalibration::offset(double elevation) const {
   const int b = bin_of(elevation);
   return b < 0 ? 0.0 : offset_[b];
