@@ -88,6 +88,52 @@ TEST(ElevationCalibration, EstimateRecoversTheSimulatedBeamErrorsOfFarGround) {
   EXPECT_EQ(close, checked);
 }
 
+// Every 3rd of the first 150 ideal `city` frames, placed by the truth relative to the first pose
+// (which stands 3.4 deg off the vertical) and tilted more and more in pitch (0.01 deg per scan, as a
+// drifting odometry would): levelling by the walls brings them back to the world's vertical.
+TEST(ElevationCalibration, WallsLevelATrajectoryThatPitchesAsItGoes) {
+  sim::SimulationConfig sc;
+  sc.scenario = "city";
+  sc.frames = 150;
+  sc.realism = sim::RealismConfig::none();
+  const sim::Simulator simulator(sc);
+  std::vector<CalibrationScan> scans(50);
+  std::vector<Eigen::Isometry3d> truth(scans.size());
+  tbb::parallel_for(size_t{0}, scans.size(), [&](size_t k) {
+    PreparedScan p = prepare_scan(simulator.scan(3 * k), 0.0, MappingConfig{}, {});
+    scans[k].bins = ElevationCalibration::bins(*p.cloud);
+    scans[k].cloud = std::move(*p.cloud);
+    truth[k] = simulator.poses().front().inverse() * simulator.poses()[3 * k];
+  });
+  for (size_t k = 0; k < scans.size(); ++k) {
+    const Eigen::Matrix3d drift(Eigen::AngleAxisd(0.01 * kDeg * static_cast<double>(k), Eigen::Vector3d::UnitY()));
+    scans[k].T_world_sensor = truth[k];
+    scans[k].T_world_sensor.linear() = drift * truth[k].linear();
+    if (k > 0)  // positions follow the drifting orientations, as they do in a run
+      scans[k].T_world_sensor.translation() = scans[k - 1].T_world_sensor.translation() +
+          drift * (truth[k].translation() - truth[k - 1].translation());
+  }
+  // Between the sensor's "up" and the true one (the first pose may stand on a slope: levelling
+  // answers to the walls, i.e. to the world's vertical).
+  const auto tilt_deg = [&](const std::vector<CalibrationScan>& s, size_t k) {
+    const Eigen::Vector3d est = s[k].T_world_sensor.linear().transpose() * Eigen::Vector3d::UnitZ();
+    const Eigen::Vector3d gt = simulator.poses()[3 * k].linear().transpose() * Eigen::Vector3d::UnitZ();
+    return std::acos(std::min(1.0, est.dot(gt))) / kDeg;
+  };
+  double before = 0.0, after = 0.0, worst = 0.0;
+  for (size_t k = 0; k < scans.size(); ++k) before += tilt_deg(scans, k) / static_cast<double>(scans.size());
+  level_with_walls(scans);
+  for (size_t k = 0; k < scans.size(); ++k) {
+    after += tilt_deg(scans, k) / static_cast<double>(scans.size());
+    worst = std::max(worst, tilt_deg(scans, k));
+  }
+  std::printf("tilt from the vertical: mean %.3f deg before levelling, mean %.3f and worst %.3f after\n", before, after, worst);
+  EXPECT_GT(before, 3.0);
+  // Measured: 3.685 before, 0.040 (worst 0.074) after; one Gauss-Newton step instead of 3 left 0.170.
+  EXPECT_LT(after, 0.08);
+  EXPECT_LT(worst, 0.12);
+}
+
 // The first 300 `city` frames (9.6 m down a slope) with only the calibration errors, mapped
 // without and with the offsets estimated from every 3rd of them placed by the truth.
 TEST(ElevationCalibration, OffsetsKeepTheHeightOfAMiscalibratedDrive) {

@@ -25,6 +25,7 @@ struct CalibrateOptions {
   MapRunOptions input;
   std::string trajectory, output, config_file;
   int every = 5, threads = 0;
+  bool no_level = false;
 };
 
 struct Pending {
@@ -91,7 +92,8 @@ int calibrate(const CalibrateOptions& o) {
   if (o.every < 1) throw Error("--every: must be >= 1");
   MappingConfig config = o.config_file.empty() ? MappingConfig{} : MappingConfig::load(o.config_file);
   const Trajectory traj = read_trajectory(o.trajectory);
-  const std::vector<CalibrationScan> scans = read_scans(o, traj, config);
+  std::vector<CalibrationScan> scans = read_scans(o, traj, config);
+  if (!o.no_level) level_with_walls(scans);
   std::fprintf(stderr, "Estimating from %zu scans...\n", scans.size());
   const ElevationCalibration c = ElevationCalibration::estimate(scans);
   const std::string text = c.to_text();
@@ -118,6 +120,7 @@ void add_calibrate(CLI::App& app, Runner& run) {
   cmd->add_option("-o,--output", o->output, "Calibration file to write")->required();
   cmd->add_option("--every", o->every, "Use every N-th scan")->capture_default_str();
   cmd->add_option("--config", o->config_file, "YAML configuration of the run (preprocessing)");
+  cmd->add_flag("--no-level", o->no_level, "Trust the trajectory's roll and pitch (a reference) instead of levelling it by vertical walls");
   cmd->add_option("--topic", o->input.topic, "Bags: the point-cloud topic (default: the only one)");
   cmd->add_option("--start", o->input.start, "First scan index")->capture_default_str();
   cmd->add_option("--max-frames", o->input.max_frames, "Process at most this many scans (0 = all)")->capture_default_str();

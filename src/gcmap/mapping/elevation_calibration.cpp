@@ -11,6 +11,7 @@
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/gaussian_voxel_map.hpp"
+#include "gcmap/core/se3.hpp"
 
 namespace gcmap {
 namespace {
@@ -23,6 +24,9 @@ constexpr int kBins = 901;
 constexpr double kMaxOffset = 2.0 * kDeg;
 constexpr double kHuber = 3.0;       // on the whitened point-to-plane distance
 constexpr double kMinNormalZ = 0.9;  // level ground only (within 26 deg)
+constexpr double kMaxWallNormalZ = 0.3;      // steep surfaces for levelling (within 17 deg of vertical)
+constexpr double kWallPrior = 100.0;         // points' worth of "no tilt" in the levelling
+constexpr int kLevelIterations = 3;         // Gauss-Newton steps: a run may stand degrees off the vertical
 
 int bin_of(double elevation) {
   if (!std::isfinite(elevation)) return -1;  // raw scans may hold NaN or infinite points
@@ -180,7 +184,56 @@ BinSums world_sums(const std::vector<CalibrationScan>& scans, const Corrected& c
   return total(sums);
 }
 
+// Normal equations of the small world rotation (about x and y) that levels the normals of the
+// scan's steep surfaces: least squares on n_z + theta_x n_y - theta_y n_x.
+struct TiltEquations {
+  Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d b = Eigen::Vector2d::Zero();
+};
+
+TiltEquations wall_tilt(const CalibrationScan& s) {
+  TiltEquations e;
+  const Eigen::Matrix3d R = s.T_world_sensor.linear();
+  for (const Eigen::Matrix3f& cov : s.cloud.covs) {
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> eig;
+    eig.computeDirect(cov);
+    const Eigen::Vector3d n = R * eig.eigenvectors().col(0).cast<double>();
+    if (std::abs(n.z()) > kMaxWallNormalZ) continue;
+    const Eigen::Vector2d J(n.y(), -n.x());
+    e.A += J * J.transpose(), e.b -= J * n.z();
+  }
+  return e;
+}
+
+// One Gauss-Newton step of every scan's levelling, positions re-integrated.
+void level_step(std::vector<CalibrationScan>& scans, int window) {
+  std::vector<TiltEquations> eq(scans.size());
+  tbb::parallel_for(size_t{0}, scans.size(), [&](size_t k) { eq[k] = wall_tilt(scans[k]); });
+  std::vector<Eigen::Isometry3d> before(scans.size());
+  for (size_t k = 0; k < scans.size(); ++k) before[k] = scans[k].T_world_sensor;
+  for (size_t k = 0; k < scans.size(); ++k) {
+    // Walls along a street hold only the roll: the window adds the cross streets, and the prior
+    // keeps a direction that no wall holds where it is.
+    TiltEquations sum;
+    sum.A = kWallPrior * Eigen::Matrix2d::Identity();
+    const size_t first = k > static_cast<size_t>(window) ? k - window : 0, last = std::min(scans.size() - 1, k + window);
+    for (size_t j = first; j <= last; ++j) sum.A += eq[j].A, sum.b += eq[j].b;
+    const Eigen::Vector2d tilt = sum.A.ldlt().solve(sum.b);
+    Eigen::Isometry3d& T = scans[k].T_world_sensor;
+    T.linear() = so3_exp(Eigen::Vector3d(tilt.x(), tilt.y(), 0.0)) * before[k].linear();
+    if (k > 0) {
+      const Eigen::Isometry3d& T_prev = scans[k - 1].T_world_sensor;
+      T.translation() = T_prev.translation() + T_prev.linear() * before[k - 1].linear().transpose() *
+                                                   (before[k].translation() - before[k - 1].translation());
+    }
+  }
+}
+
 }  // namespace
+
+void level_with_walls(std::vector<CalibrationScan>& scans, int window) {
+  for (int it = 0; it < kLevelIterations; ++it) level_step(scans, window);
+}
 
 ElevationCalibration ElevationCalibration::estimate(const std::vector<CalibrationScan>& scans,
                                                     const CalibrationEstimate& options) {

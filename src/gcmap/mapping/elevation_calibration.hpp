@@ -7,7 +7,7 @@
 // ever seen from farther), so the offsets are estimated from scans placed by a trajectory: each
 // point against the level ground that the scans saw from close by. A trajectory that does not share
 // the error (a reference) gives them all back; the run's own gives back the differences between
-// beams, not their part that is smooth in range.
+// beams, and their part that is smooth in range only once levelled by the walls (level_with_walls).
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -30,6 +30,12 @@ struct CalibrationEstimate {
   int iterations = 3;
   int min_points = 200;         // level-ground points a bin needs for an offset
 };
+
+// Removes a trajectory's slow roll and pitch drift, such as these very errors cause: walls, poles
+// and trunks stand vertical, so the normals of a scan's steep surfaces must lie level in the world.
+// Each scan's tilt is averaged over `window` scans either side, and the positions are re-integrated
+// with the levelled orientations. Scans in trajectory order.
+void level_with_walls(std::vector<CalibrationScan>& scans, int window = 10);
 
 // Offsets in 0.1 deg bins of the measured elevation (a bin per beam of a spinning sensor).
 class ElevationCalibration {
