@@ -116,6 +116,10 @@ void bench_solvers(std::span<char*> graph_jsons) {
       print_solvers(laps_back == 1 ? "synthetic, 1 lap" : "synthetic, all", poses, pairs.size(), mapping_system(poses, pairs));
     }
   }
+  for (int factors : {1000, 4500}) {
+    const auto pairs = bench::Kitti07::graph_pairs(factors);
+    print_solvers("kitti07 bench", std::max(5, factors / 5), pairs.size(), mapping_system(std::max(5, factors / 5), pairs));
+  }
   for (const char* path : graph_jsons) {
     const viz::RunGraph run = viz::read_graph_json(path);
     std::vector<std::pair<int, int>> pairs;

@@ -2,6 +2,7 @@
 // Benchmark graphs over the five real kitti07 submap clouds (../shared/data/kitti07_submaps).
 #include <filesystem>
 #include <optional>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -32,20 +33,43 @@ struct Kitti07 {
     return k;
   }
 
-  // num_factors matching-cost factors: variables cycle through the 5 clouds at their reference
-  // poses and each factor joins two variables holding different clouds, so every factor is a real
-  // overlapping pair.
+  // The (source, target) variables of num_factors matching-cost factors over max(5, num_factors / 5)
+  // variables that cycle through the 5 clouds: each factor joins two variables holding different
+  // clouds, so every factor is a real overlapping pair.
+  static std::vector<std::pair<int, int>> graph_pairs(int num_factors) {
+    const int num_vars = std::max(5, num_factors / 5);
+    std::vector<std::pair<int, int>> pairs;
+    for (int f = 0; pairs.size() < static_cast<size_t>(num_factors); ++f) {
+      const int u = f % num_vars, step = 1 + (f / num_vars) % 4;
+      const int v = (u + step) % num_vars;
+      if (u % 5 != v % 5) pairs.emplace_back(u, v);
+    }
+    return pairs;
+  }
+
+  // That graph with the variables at the clouds' reference poses.
   void make_graph(int num_factors, FactorGraph& graph, Values& values) const {
     const int num_vars = std::max(5, num_factors / 5);
     for (int v = 0; v < num_vars; ++v) values[v] = reference.poses[v % 5];
-    for (int f = 0; graph.factors.size() < static_cast<size_t>(num_factors); ++f) {
-      const int u = f % num_vars, step = 1 + (f / num_vars) % 4;
-      const int v = (u + step) % num_vars;
-      if (u % 5 == v % 5) continue;
+    for (const auto& [u, v] : graph_pairs(num_factors))
       graph.add(std::make_shared<MatchingCostFactor>(u, v, nodes[u % 5].cloud, nodes[v % 5].voxels));
-    }
   }
 };
+
+// values with every pose but the first moved by a random step of up to `meters` and `radians` per
+// axis (fixed seed).
+inline Values perturbed(const Values& values, double meters, double radians) {
+  std::mt19937 rng(42);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  Values out = values;
+  for (auto& [key, T] : out) {
+    if (key == out.begin()->first) continue;
+    Vector6d d;
+    for (int k = 0; k < 6; ++k) d[k] = u(rng) * (k < 3 ? radians : meters);
+    T = T * se3_exp(d);
+  }
+  return out;
+}
 
 struct Timing {
   double linearize_ms = 0.0, trial_ms = 0.0;

@@ -180,9 +180,9 @@ void CudaBackend::linearize(std::span<Factor* const> factors, std::span<const Fa
   impl_->sums.resize(device::kSums * on_device.size());
   tbb::parallel_for(size_t{0}, on_host.size(), [&](size_t k) { factors[on_host[k]]->linearize(poses[on_host[k]].data(), out[on_host[k]]); });
   impl_->batch.linearize(impl_->poses.data(), impl_->sums.data());
-  for (size_t k = 0; k < on_device.size(); ++k) {
+  tbb::parallel_for(size_t{0}, on_device.size(), [&](size_t k) {
     to_factor_linearization(expand_to_both_poses(unpack(impl_->sums.data() + device::kSums * k), T[k]), out[on_device[k]]);
-  }
+  });
 }
 
 void CudaBackend::trial_errors(std::span<Factor* const> factors, std::span<const FactorPoses> poses,

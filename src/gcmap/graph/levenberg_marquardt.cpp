@@ -4,6 +4,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/timer.hpp"
 
@@ -57,34 +60,94 @@ Structure analyse(const FactorGraph& graph, const Values& values, const std::set
   return s;
 }
 
-// H (lower triangle) and b from the factors' linearizations. blocks and triplets are buffers.
-void assemble(const Structure& s, std::span<Factor* const> factors, std::span<const FactorLinearization> lin,
-              std::vector<Matrix6d>& blocks, std::vector<Eigen::Triplet<double>>& triplets, Eigen::SparseMatrix<double>& H,
-              Eigen::VectorXd& b) {
+// The compressed lower triangle of H for one optimize() call, built once: assembling an iteration
+// writes the factors' blocks straight into its values (no triplets, no sorting), block by block in
+// parallel, and a damped trial copies the values and adds to the diagonal, which leads every column.
+struct Pattern {
+  Eigen::SparseMatrix<double> H;
+  std::vector<std::array<int, 6>> block_column_start;  // per block and column j: value index of its first row
+  std::vector<bool> block_is_diagonal;
+  // What each block and each variable's b receive: factor * 4 + a * 2 + c (H block (a, c) of the
+  // factor), factor * 2 + a (b segment a), in CSR layout.
+  std::vector<int> block_first, block_terms, var_first, var_terms;
+};
+
+// Groups (owner, term) pairs by owner in CSR layout.
+void to_csr(std::vector<std::pair<int, int>>& pairs, int owners, std::vector<int>& first, std::vector<int>& terms) {
+  std::stable_sort(pairs.begin(), pairs.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+  first.assign(owners + 1, 0);
+  for (const auto& [owner, term] : pairs) ++first[owner + 1];
+  for (int o = 0; o < owners; ++o) first[o + 1] += first[o];
+  terms.resize(pairs.size());
+  for (size_t i = 0; i < pairs.size(); ++i) terms[i] = pairs[i].second;
+}
+
+Pattern make_pattern(const Structure& s) {
   const int n = static_cast<int>(s.keys.size());
-  for (auto& B : blocks) B.setZero();
-  b.setZero(6 * n);
-  for (size_t f = 0; f < factors.size(); ++f) {
-    const int nk = factors[f]->num_keys();
-    for (int a = 0; a < nk; ++a) {
-      const int va = s.factor_vars[f][a];
-      if (va < 0) continue;
-      b.segment<6>(6 * va) += lin[f].b.segment<6>(6 * a);
-      for (int c = 0; c < nk; ++c) {
-        const int blk = s.factor_blocks[f][a * 2 + c];
-        if (blk >= 0) blocks[blk] += lin[f].H.block<6, 6>(6 * a, 6 * c);
+  std::vector<std::vector<int>> blocks_of_column(n);  // block ids by column, rows ascending
+  for (size_t k = 0; k < s.blocks.size(); ++k) blocks_of_column[s.blocks[k].second].push_back(static_cast<int>(k));
+  for (auto& col : blocks_of_column)
+    std::sort(col.begin(), col.end(), [&](int a, int b) { return s.blocks[a].first < s.blocks[b].first; });
+  Pattern p;
+  p.block_column_start.resize(s.blocks.size());
+  p.block_is_diagonal.resize(s.blocks.size());
+  std::vector<int> outer(6 * n + 1, 0), inner;
+  for (int c = 0; c < n; ++c) {
+    for (int j = 0; j < 6; ++j) {
+      for (const int k : blocks_of_column[c]) {
+        const int r = s.blocks[k].first;
+        const bool diagonal = r == c;
+        p.block_is_diagonal[k] = diagonal;
+        p.block_column_start[k][j] = static_cast<int>(inner.size());
+        for (int i = diagonal ? j : 0; i < 6; ++i) inner.push_back(6 * r + i);
       }
+      outer[6 * c + j + 1] = static_cast<int>(inner.size());
     }
   }
-  triplets.clear();
-  for (size_t k = 0; k < s.blocks.size(); ++k) {
-    const auto [r, c] = s.blocks[k];
-    for (int i = 0; i < 6; ++i)
-      for (int j = 0; j < 6; ++j)
-        if (r != c || i >= j) triplets.emplace_back(6 * r + i, 6 * c + j, blocks[k](i, j));
+  p.H.resize(6 * n, 6 * n);
+  p.H.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
+  std::copy(outer.begin(), outer.end(), p.H.outerIndexPtr());
+  std::copy(inner.begin(), inner.end(), p.H.innerIndexPtr());
+
+  std::vector<std::pair<int, int>> block_terms, var_terms;
+  for (size_t f = 0; f < s.factor_vars.size(); ++f) {
+    const int fi = static_cast<int>(f);
+    for (int a = 0; a < 2; ++a) {
+      if (s.factor_vars[f][a] >= 0) var_terms.emplace_back(s.factor_vars[f][a], fi * 2 + a);
+      for (int c = 0; c < 2; ++c)
+        if (s.factor_blocks[f][a * 2 + c] >= 0) block_terms.emplace_back(s.factor_blocks[f][a * 2 + c], fi * 4 + a * 2 + c);
+    }
   }
-  H.resize(6 * n, 6 * n);
-  H.setFromTriplets(triplets.begin(), triplets.end());
+  to_csr(block_terms, static_cast<int>(s.blocks.size()), p.block_first, p.block_terms);
+  to_csr(var_terms, n, p.var_first, p.var_terms);
+  return p;
+}
+
+// H (lower triangle, into p.H's values) and b from the factors' linearizations.
+void assemble(std::span<const FactorLinearization> lin, Pattern& p, Eigen::VectorXd& b) {
+  double* values = p.H.valuePtr();
+  const int num_blocks = static_cast<int>(p.block_is_diagonal.size());
+  tbb::parallel_for(tbb::blocked_range<int>(0, num_blocks, 64), [&](const tbb::blocked_range<int>& r) {
+    for (int blk = r.begin(); blk != r.end(); ++blk) {
+      Matrix6d sum = Matrix6d::Zero();
+      for (int t = p.block_first[blk]; t < p.block_first[blk + 1]; ++t) {
+        const int term = p.block_terms[t], f = term / 4, a = (term / 2) % 2, c = term % 2;
+        sum += lin[f].H.block<6, 6>(6 * a, 6 * c);
+      }
+      const int first = p.block_is_diagonal[blk] ? 1 : 0;
+      for (int j = 0; j < 6; ++j) {
+        double* column = values + p.block_column_start[blk][j] - first * j;
+        for (int i = first * j; i < 6; ++i) column[i] = sum(i, j);
+      }
+    }
+  });
+  const int n = static_cast<int>(p.var_first.size()) - 1;
+  b.resize(6 * n);
+  for (int v = 0; v < n; ++v) {
+    Vector6d sum = Vector6d::Zero();
+    for (int t = p.var_first[v]; t < p.var_first[v + 1]; ++t) sum += lin[p.var_terms[t] / 2].b.segment<6>(6 * (p.var_terms[t] % 2));
+    b.segment<6>(6 * v) = sum;
+  }
 }
 
 }  // namespace
@@ -129,10 +192,9 @@ LMResult LevenbergMarquardt::optimize(const FactorGraph& graph, Values& values, 
     return result;
   }
 
-  std::vector<Matrix6d> blocks(s.blocks.size());
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(s.blocks.size() * 36);
-  Eigen::SparseMatrix<double> H;
+  Pattern pattern = make_pattern(s);
+  const Eigen::SparseMatrix<double>& H = pattern.H;
+  Eigen::SparseMatrix<double> A = H;  // the damped copy, same pattern
   Eigen::VectorXd b;
   const int analyses_before = solver_.analyses();
 
@@ -141,14 +203,15 @@ LMResult LevenbergMarquardt::optimize(const FactorGraph& graph, Values& values, 
     stats.iteration = iter;
     const double lin_ms_before = result.linearize_ms;
     Stopwatch wa;
-    assemble(s, factors, lin, blocks, triplets, H, b);
+    assemble(lin, pattern, b);
+    Eigen::VectorXd diag(6 * n);
+    for (int k = 0; k < 6 * n; ++k) diag[k] = H.valuePtr()[H.outerIndexPtr()[k]];
     if (iter == 1) {
       for (int v = 0; v < n; ++v) {
-        if (!(blocks[v].trace() > 0.0))
+        if (!(diag.segment<6>(6 * v).sum() > 0.0))
           throw Error("pose " + std::to_string(s.keys[v]) + " is not constrained by any factor (singular system)");
       }
     }
-    const Eigen::VectorXd diag = H.diagonal();
     stats.assemble_ms = wa.ms();
     // H is stored as its lower triangle: H * x needs the symmetric view.
     auto quad = [&](const Eigen::VectorXd& x) { return x.dot(H.selfadjointView<Eigen::Lower>() * x); };
@@ -161,8 +224,8 @@ LMResult LevenbergMarquardt::optimize(const FactorGraph& graph, Values& values, 
     while (lambda_ <= config_.max_lambda) {
       ++stats.trials;
       Stopwatch wa_trial;
-      Eigen::SparseMatrix<double> A = H;
-      for (int k = 0; k < 6 * n; ++k) A.coeffRef(k, k) += lambda_ * std::max(diag[k], 1e-6);
+      std::copy(H.valuePtr(), H.valuePtr() + H.nonZeros(), A.valuePtr());
+      for (int k = 0; k < 6 * n; ++k) A.valuePtr()[A.outerIndexPtr()[k]] += lambda_ * std::max(diag[k], 1e-6);
       stats.assemble_ms += wa_trial.ms();
       Stopwatch w;
       const bool factorized = solver_.factorize(A);
