@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_pipeline.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <cmath>
@@ -65,7 +66,7 @@ MappingPipeline::MappingPipeline(const MappingConfig& config, std::shared_ptr<Li
     : config_(config),
       backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
       options_(with_elevation_calibration(std::move(options), config.preprocess)),
-      odometry_(config.odometry),
+      odometry_(config.odometry, backend_),
       mapper_(config, backend_) {}
 
 PreparedScan MappingPipeline::prepare(PointCloud raw, double stamp) const {
@@ -255,7 +256,10 @@ size_t MappingPipeline::run(ScanSource& source, const RunOptions& options) {
           tbb::make_filter<Item, void>(tbb::filter_mode::serial_in_order, [&](Item item) {
             std::optional<Eigen::Isometry3d> guess;
             if (options.initial_pose) guess = options.initial_pose(item.frame);
-            const Frame f = add_prepared(std::move(item.prepared), guess);
+            // Isolated: while waiting for its own parallel loops, this stage must not pick up a
+            // scan being loaded and prepared (TBB lets a waiting thread steal any task), which
+            // would hold up the serial stage that bounds the throughput.
+            const Frame f = tbb::this_task_arena::isolate([&] { return add_prepared(std::move(item.prepared), guess); });
             ++added;
             if (options.on_frame) options.on_frame(f);
           }));
