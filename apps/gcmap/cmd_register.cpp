@@ -74,8 +74,9 @@ void add_register(CLI::App& app, Runner& run) {
       voxel_map->finalize();
       const GaussianVoxelMap& voxels = *voxel_map;
       const double t_vox = watch.lap_ms();
-      const RegistrationResult r =
-          align_vgicp_on(backend, std::make_shared<const PointCloud>(source), voxel_map, init, o.max_iterations);
+      RegistrationConfig config;
+      config.max_iterations = o.max_iterations;
+      const RegistrationResult r = backend->align(source, voxel_map, init, config);
       const double t_align = watch.lap_ms();
 
       Json out = Json::object();

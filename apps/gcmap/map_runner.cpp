@@ -27,6 +27,22 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// What the GPU holds at the end of the run: the submaps' clouds and voxel maps it keeps for the
+// global factors, and the per-iteration buffers of the last batch.
+Json device_memory_json(const cuda::CudaBackend& gpu, const MappingPipeline& pipeline) {
+  const cuda::DeviceMemory m = gpu.memory();
+  const size_t submaps = std::max<size_t>(pipeline.submaps().size(), 1), factors = std::max<size_t>(pipeline.factors().size(), 1);
+  Json j = Json::object();
+  j["clouds"] = m.num_clouds;
+  j["cloud_mb"] = m.cloud_bytes / 1e6;
+  j["voxel_maps"] = m.num_maps;
+  j["voxel_map_mb"] = m.map_bytes / 1e6;
+  j["batch_mb"] = m.batch_bytes / 1e6;
+  j["mb_per_submap"] = (m.cloud_bytes + m.map_bytes) / 1e6 / submaps;
+  j["mb_per_factor"] = m.batch_bytes / 1e6 / factors;
+  return j;
+}
+
 void check_writable(const std::string& dir) {
   std::error_code ec;
   fs::create_directories(dir, ec);
@@ -95,6 +111,7 @@ void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapR
     Json warnings = Json::array();  // e.g. a truncated bag: mapped up to the damage
     for (const std::string& w : input_warnings) warnings.push_back(w);
     stats["input_warnings"] = warnings;
+    if (const auto* gpu = dynamic_cast<const cuda::CudaBackend*>(&pipeline.backend())) stats["device_memory"] = device_memory_json(*gpu, pipeline);
     write_file_atomic((out / "stats.json").string(), [&](std::ostream& s) { s << stats.dump() << "\n"; });
     write_file_atomic((out / "config.yaml").string(), [&](std::ostream& s) { s << o.config.to_yaml(); });
     write_session((out / "session").string(), pipeline, traj.stamps);

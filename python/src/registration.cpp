@@ -53,7 +53,7 @@ PairResult register_pair(const PointCloud& target_in, const PointCloud& source_i
     const GicpTarget gicp_target(std::make_shared<const PointCloud>(target));
     out.r = align_gicp(source, gicp_target, init, config);
   } else if (backend) {
-    out.r = align_vgicp_on(backend, std::make_shared<const PointCloud>(source), voxels, init, o.max_iterations);
+    out.r = backend->align(source, voxels, init, config);
   } else {
     out.r = align_vgicp(source, *voxels, init, config);
   }

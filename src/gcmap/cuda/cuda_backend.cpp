@@ -6,6 +6,7 @@
 #include <map>
 
 #include "gcmap/core/error.hpp"
+#include "gcmap/registration/align.hpp"
 #include "gcmap/registration/vgicp.hpp"
 
 #ifdef GCMAP_WITH_CUDA
@@ -56,6 +57,52 @@ TargetFrameSums unpack(const double* s) {
   return t;
 }
 
+device::Cloud upload(const PointCloud& host) {
+  if (!host.has_covs()) throw Error("CUDA backend: a matching-cost source cloud has no covariances");
+  const size_t n = host.size();
+  std::vector<float> xyz(3 * n), cov(6 * n);
+  for (size_t i = 0; i < n; ++i) {
+    for (int k = 0; k < 3; ++k) xyz[3 * i + k] = host.points[i][k];
+    cov_upper(host.covs[i], cov.data() + 6 * i);
+  }
+  return device::upload_cloud(xyz.data(), cov.data(), static_cast<uint32_t>(n));
+}
+
+device::VoxelMap upload(const GaussianVoxelMap& host) {
+  const size_t n = host.num_voxels();
+  std::vector<int32_t> coords(3 * n);
+  std::vector<float> means(3 * n), cov(6 * n);
+  for (size_t v = 0; v < n; ++v) {
+    const Eigen::Vector3i c = host.coord(static_cast<int>(v));
+    for (int k = 0; k < 3; ++k) coords[3 * v + k] = c[k], means[3 * v + k] = host.mean(static_cast<int>(v))[k];
+    cov_upper(host.cov(static_cast<int>(v)), cov.data() + 6 * v);
+  }
+  // Hard cap: a table 8x its initial size (load 1/16) that still overflows is a broken hash.
+  const uint32_t max_slots = 8 * voxel_table_capacity(n);
+  return device::upload_voxel_map(coords.data(), means.data(), cov.data(), static_cast<uint32_t>(n), host.inv_resolution(),
+                                  max_slots);
+}
+
+// One registration's cost on the device for align() (registration/align.hpp): the batch holds the
+// single (source, target) pair.
+struct DeviceVgicpProblem {
+  device::Batch& batch;
+  VgicpLinearization linearize(const Eigen::Isometry3d& T) {
+    float rows[12];
+    double sums[device::kSums];
+    pose_rows(T, rows);
+    batch.linearize(rows, sums);
+    return expand_to_both_poses(unpack(sums), T);
+  }
+  VgicpError evaluate(const Eigen::Isometry3d& T) {
+    float rows[12];
+    double sums[2];
+    pose_rows(T, rows);
+    batch.trial_errors(rows, sums);
+    return {sums[0], static_cast<size_t>(sums[1])};
+  }
+};
+
 }  // namespace
 
 struct CudaBackend::Impl {
@@ -84,35 +131,29 @@ struct CudaBackend::Impl {
     auto it = clouds.find(host.get());
     if (it != clouds.end() && !it->second.host.expired()) return it->second.device;
     if (it != clouds.end()) device::free_cloud(it->second.device), clouds.erase(it);
-    if (!host->has_covs()) throw Error("CUDA backend: a matching-cost source cloud has no covariances");
-    const size_t n = host->size();
-    std::vector<float> xyz(3 * n), cov(6 * n);
-    for (size_t i = 0; i < n; ++i) {
-      for (int k = 0; k < 3; ++k) xyz[3 * i + k] = host->points[i][k];
-      cov_upper(host->covs[i], cov.data() + 6 * i);
-    }
-    const device::Cloud d = device::upload_cloud(xyz.data(), cov.data(), static_cast<uint32_t>(n));
-    return clouds.emplace(host.get(), Resident<PointCloud, device::Cloud>{host, d}).first->second.device;
+    return clouds.emplace(host.get(), Resident<PointCloud, device::Cloud>{host, upload(*host)}).first->second.device;
   }
 
   const device::VoxelMap& map(const std::shared_ptr<const GaussianVoxelMap>& host) {
     auto it = maps.find(host.get());
     if (it != maps.end() && !it->second.host.expired()) return it->second.device;
     if (it != maps.end()) device::free_voxel_map(it->second.device), maps.erase(it);
-    const size_t n = host->num_voxels();
-    std::vector<int32_t> coords(3 * n);
-    std::vector<float> means(3 * n), cov(6 * n);
-    for (size_t v = 0; v < n; ++v) {
-      const Eigen::Vector3i c = host->coord(static_cast<int>(v));
-      for (int k = 0; k < 3; ++k) coords[3 * v + k] = c[k], means[3 * v + k] = host->mean(static_cast<int>(v))[k];
-      cov_upper(host->cov(static_cast<int>(v)), cov.data() + 6 * v);
-    }
-    // Hard cap: a table 8x its initial size (load 1/16) that still overflows is a broken hash.
-    const uint32_t max_slots = 8 * voxel_table_capacity(n);
-    const device::VoxelMap d = device::upload_voxel_map(coords.data(), means.data(), cov.data(), static_cast<uint32_t>(n),
-                                                        host->inv_resolution(), max_slots);
-    return maps.emplace(host.get(), Resident<GaussianVoxelMap, device::VoxelMap>{host, d}).first->second.device;
+    return maps.emplace(host.get(), Resident<GaussianVoxelMap, device::VoxelMap>{host, upload(*host)}).first->second.device;
   }
+
+  // align(): the source is uploaded by every call (the odometry deskews a frame in place between
+  // registrations); the target is kept while the same map comes back (the odometry's model lives
+  // until the next keyframe); holding it keeps its address from being reused.
+  struct Registration {
+    device::Cloud source;
+    std::shared_ptr<const GaussianVoxelMap> target;
+    device::VoxelMap target_device;
+    device::Batch batch;
+    ~Registration() {
+      device::free_cloud(source);
+      device::free_voxel_map(target_device);
+    }
+  } registration;
 
   void release_unused() {
     for (auto it = clouds.begin(); it != clouds.end();) {
@@ -216,6 +257,23 @@ void CudaBackend::overlaps(const std::shared_ptr<const PointCloud>& source,
   for (size_t k = 0; k < targets.size(); ++k) out[k] = static_cast<double>(hits[k]) / static_cast<double>(source->size());
 }
 
+RegistrationResult CudaBackend::align(const PointCloud& source, const std::shared_ptr<const GaussianVoxelMap>& target,
+                                      const Eigen::Isometry3d& init_T_target_source, const RegistrationConfig& config) {
+  if (source.empty() || target->num_voxels() == 0) return LinearizationBackend::align(source, target, init_T_target_source, config);
+  Impl::Registration& r = impl_->registration;
+  device::free_cloud(r.source);
+  r.source = upload(source);
+  if (r.target != target) {
+    device::free_voxel_map(r.target_device);
+    r.target.reset();
+    r.target_device = upload(*target);
+    r.target = target;
+  }
+  r.batch.set_pairs({r.source}, {r.target_device});
+  DeviceVgicpProblem problem{r.batch};
+  return gcmap::align(problem, init_T_target_source, config);
+}
+
 void CudaBackend::release_unused() { impl_->release_unused(); }
 
 DeviceMemory CudaBackend::memory() const {
@@ -231,7 +289,7 @@ DeviceMemory CudaBackend::memory() const {
     m.num_slots += v.device.mask + 1;
     m.map_bytes += v.device.num_voxels * 10 * sizeof(float) + (v.device.mask + 1) * sizeof(VoxelSlot);
   }
-  m.batch_bytes = impl_->batch.device_bytes();
+  m.batch_bytes = impl_->batch.device_bytes() + impl_->registration.batch.device_bytes();
   return m;
 }
 
@@ -251,6 +309,10 @@ void CudaBackend::linearize(std::span<Factor* const>, std::span<const FactorPose
 void CudaBackend::trial_errors(std::span<Factor* const>, std::span<const FactorPoses>, std::span<double>) {}
 void CudaBackend::overlaps(const std::shared_ptr<const PointCloud>&, std::span<const std::shared_ptr<const GaussianVoxelMap>>,
                            std::span<const Eigen::Isometry3d>, std::span<double>) {}
+RegistrationResult CudaBackend::align(const PointCloud& source, const std::shared_ptr<const GaussianVoxelMap>& target,
+                                      const Eigen::Isometry3d& init, const RegistrationConfig& config) {
+  return LinearizationBackend::align(source, target, init, config);
+}
 void CudaBackend::release_unused() {}
 DeviceMemory CudaBackend::memory() const { return {}; }
 std::string CudaBackend::name() const { return "cuda"; }

@@ -30,6 +30,8 @@ class CudaBackend : public LinearizationBackend {
   void overlaps(const std::shared_ptr<const PointCloud>& source,
                 std::span<const std::shared_ptr<const GaussianVoxelMap>> targets,
                 std::span<const Eigen::Isometry3d> T_target_source, std::span<double> out) override;
+  RegistrationResult align(const PointCloud& source, const std::shared_ptr<const GaussianVoxelMap>& target,
+                           const Eigen::Isometry3d& init_T_target_source, const RegistrationConfig& config) override;
 
   // Frees the device copies of clouds and maps whose host objects are gone (also done whenever the
   // set of factors changes).

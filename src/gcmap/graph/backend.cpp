@@ -49,4 +49,9 @@ std::vector<TargetOverlap> overlapping_targets(LinearizationBackend& backend, co
   return kept;
 }
 
+RegistrationResult LinearizationBackend::align(const PointCloud& source, const std::shared_ptr<const GaussianVoxelMap>& target,
+                                               const Eigen::Isometry3d& init_T_target_source, const RegistrationConfig& config) {
+  return align_vgicp(source, *target, init_T_target_source, config);
+}
+
 }  // namespace gcmap

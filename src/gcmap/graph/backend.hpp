@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "gcmap/graph/factor_graph.hpp"
+#include "gcmap/registration/registration.hpp"
 
 namespace gcmap {
 
@@ -31,6 +32,10 @@ class LinearizationBackend {
   virtual void overlaps(const std::shared_ptr<const PointCloud>& source,
                         std::span<const std::shared_ptr<const GaussianVoxelMap>> targets,
                         std::span<const Eigen::Isometry3d> T_target_source, std::span<double> out);
+  // align_vgicp (registration/registration.hpp) of the odometry and the localizer. The default runs
+  // on the CPU; a GPU backend evaluates the points on the device. Not thread-safe on a GPU.
+  virtual RegistrationResult align(const PointCloud& source, const std::shared_ptr<const GaussianVoxelMap>& target,
+                                   const Eigen::Isometry3d& init_T_target_source, const RegistrationConfig& config);
   virtual Device device() const = 0;
   // For reports: "cpu" or "cuda: <device name>".
   virtual std::string name() const = 0;

@@ -14,30 +14,6 @@ ScanNode make_scan_node(PointCloud cloud, double voxel_resolution) {
   return {std::make_shared<const PointCloud>(std::move(cloud)), voxels};
 }
 
-RegistrationResult align_vgicp_on(const std::shared_ptr<LinearizationBackend>& backend, const std::shared_ptr<const PointCloud>& source,
-                                  const std::shared_ptr<const GaussianVoxelMap>& target, const Eigen::Isometry3d& init,
-                                  int max_iterations) {
-  if (backend->device() == Device::cpu) {
-    RegistrationConfig config;
-    config.max_iterations = max_iterations;
-    return align_vgicp(*source, *target, init, config);
-  }
-  FactorGraph graph;
-  graph.add(std::make_shared<MatchingCostFactor>(1, 0, source, target));
-  Values values{{0, Eigen::Isometry3d::Identity()}, {1, init}};
-  LMConfig config;
-  config.max_iterations = max_iterations;
-  const LMResult lm = LevenbergMarquardt(config, backend).optimize(graph, values, {0});
-  RegistrationResult r;
-  r.T_target_source = values.at(1);
-  r.converged = lm.converged;
-  r.iterations = lm.iterations;
-  const VgicpError e = evaluate_vgicp(*source, *target, r.T_target_source);
-  r.error = e.error;
-  r.num_inliers = e.num_inliers;
-  return r;
-}
-
 std::vector<PairOverlap> add_overlapping_pairs(FactorGraph& graph, const std::vector<ScanNode>& nodes,
                                                const Values& values, double min_overlap, LinearizationBackend* backend) {
   CpuBackend cpu;

@@ -15,12 +15,6 @@ struct ScanNode {
 // Estimates the cloud's covariances and builds its voxel map.
 ScanNode make_scan_node(PointCloud cloud, double voxel_resolution);
 
-// VGICP of one pair on a backend: align_vgicp on the CPU; elsewhere the same cost as a two-pose
-// graph (target fixed) through LM, so a GPU linearizes it.
-RegistrationResult align_vgicp_on(const std::shared_ptr<LinearizationBackend>& backend, const std::shared_ptr<const PointCloud>& source,
-                                  const std::shared_ptr<const GaussianVoxelMap>& target, const Eigen::Isometry3d& init,
-                                  int max_iterations);
-
 struct PairOverlap {
   int source, target;
   double overlap;  // overlap(source -> target) at the given poses

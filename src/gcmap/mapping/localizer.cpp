@@ -26,7 +26,7 @@ Localizer::Localizer(std::shared_ptr<const PriorMap> prior, const MappingConfig&
       config_(config),
       backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
       options_(with_elevation_calibration(std::move(options), config.preprocess)),
-      odometry_(config.odometry) {
+      odometry_(config.odometry, backend_) {
   config_.validate();
   if (!prior_ || prior_->submaps.empty()) throw Error("localize: the prior map has no submaps");
   for (const Submap& s : prior_->submaps) {

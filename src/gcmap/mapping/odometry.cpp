@@ -19,6 +19,9 @@ constexpr int kMaxFailedStreak = 3;
 
 }  // namespace
 
+Odometry::Odometry(const OdometryConfig& config, std::shared_ptr<LinearizationBackend> backend)
+    : config_(config), backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()) {}
+
 Eigen::Isometry3d Odometry::predict(std::optional<double> stamp) const {
   if (frames_ < 2) return last_;
   const Eigen::Isometry3d delta = previous_.inverse() * last_;
@@ -42,9 +45,7 @@ void Odometry::set_pose(const Eigen::Isometry3d& T, std::optional<double> stamp)
 void Odometry::add_keyframe(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T) {
   keyframes_.emplace_back(T, frame);
   while (static_cast<int>(keyframes_.size()) > config_.model_keyframes) keyframes_.pop_front();
-  model_ = std::make_unique<GaussianVoxelMap>(config_.voxel_resolution);
-  for (const auto& [pose, cloud] : keyframes_) model_->insert(*cloud, pose);
-  model_->finalize();
+  model_ = model_at(config_.voxel_resolution);
 }
 
 Eigen::Isometry3d Odometry::track(const std::shared_ptr<const PointCloud>& frame, std::optional<double> stamp, bool* ok) {
@@ -77,10 +78,10 @@ Odometry::Guess Odometry::guess_kind(std::optional<double> stamp) const {
   return dt_now < kSteadyRatio * dt_last && dt_last < kSteadyRatio * dt_now ? Guess::steady : Guess::scaled;
 }
 
-GaussianVoxelMap Odometry::model_at(double resolution) const {
-  GaussianVoxelMap map(resolution);
-  for (const auto& [pose, cloud] : keyframes_) map.insert(*cloud, pose);
-  map.finalize();
+std::shared_ptr<const GaussianVoxelMap> Odometry::model_at(double resolution) const {
+  auto map = std::make_shared<GaussianVoxelMap>(resolution);
+  for (const auto& [pose, cloud] : keyframes_) map->insert(*cloud, pose);
+  map->finalize();
   return map;
 }
 
@@ -92,13 +93,13 @@ Eigen::Isometry3d Odometry::estimate(const PointCloud& frame, const Eigen::Isome
   reg.max_iterations = config_.max_iterations;
   if (kind == Guess::rest) {
     // Nothing to compare the result with: standing still is no prediction, only the start.
-    const Eigen::Isometry3d coarse = align_vgicp(frame, model_at(config_.start_voxel_resolution), guess, reg).T_target_source;
-    const RegistrationResult r = align_vgicp(frame, *model_, coarse, reg);
+    const Eigen::Isometry3d coarse = backend_->align(frame, model_at(config_.start_voxel_resolution), guess, reg).T_target_source;
+    const RegistrationResult r = backend_->align(frame, model_, coarse, reg);
     if (failed) *failed = r.num_inliers <= 50;
     return r.num_inliers <= 50 ? guess : r.T_target_source;
   }
   const double min_inliers = config_.retry_inlier_fraction * frame.size();
-  RegistrationResult r = align_vgicp(frame, *model_, guess, reg);
+  RegistrationResult r = backend_->align(frame, model_, guess, reg);
   const auto far = [&](const RegistrationResult& x) {
     return (guess.inverse() * x.T_target_source).translation().norm() > config_.retry_distance;
   };
@@ -107,10 +108,10 @@ Eigen::Isometry3d Odometry::estimate(const PointCloud& frame, const Eigen::Isome
   if (r.num_inliers < min_inliers && (kind == Guess::scaled || far(r))) {
     // A wrong prediction (a gap, a turn) may have led into a local minimum. Retry from zero
     // motion and, with twice the voxel size (a wider basin), from both guesses.
-    const GaussianVoxelMap coarse = model_at(2.0 * config_.voxel_resolution);
+    const auto coarse = model_at(2.0 * config_.voxel_resolution);
     for (int k = 0; k < 3; ++k) {
-      const Eigen::Isometry3d from = k == 0 ? last_ : align_vgicp(frame, coarse, k == 1 ? guess : last_, reg).T_target_source;
-      const RegistrationResult retry = align_vgicp(frame, *model_, from, reg);
+      const Eigen::Isometry3d from = k == 0 ? last_ : backend_->align(frame, coarse, k == 1 ? guess : last_, reg).T_target_source;
+      const RegistrationResult retry = backend_->align(frame, model_, from, reg);
       if (retry.num_inliers > r.num_inliers || (retry.num_inliers == r.num_inliers && retry.error < r.error)) r = retry;
     }
   }
@@ -127,8 +128,8 @@ Eigen::Isometry3d Odometry::estimate(const PointCloud& frame, const Eigen::Isome
   };
   const bool implausible = kind == Guess::steady && stops_short(r);
   if (implausible) {
-    const GaussianVoxelMap coarse = model_at(2.0 * config_.voxel_resolution);
-    r = align_vgicp(frame, *model_, align_vgicp(frame, coarse, guess, reg).T_target_source, reg);
+    const auto coarse = model_at(2.0 * config_.voxel_resolution);
+    r = backend_->align(frame, model_, backend_->align(frame, coarse, guess, reg).T_target_source, reg);
   }
   const bool bad = r.num_inliers <= 50 || (implausible && stops_short(r)) || (r.num_inliers < min_inliers && far(r));
   if (failed) *failed = bad;

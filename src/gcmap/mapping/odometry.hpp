@@ -4,6 +4,7 @@
 #include <optional>
 
 #include "gcmap/core/gaussian_voxel_map.hpp"
+#include "gcmap/graph/backend.hpp"
 #include "gcmap/mapping/config.hpp"
 
 namespace gcmap {
@@ -13,7 +14,8 @@ namespace gcmap {
 // as equally spaced).
 class Odometry {
  public:
-  explicit Odometry(const OdometryConfig& config) : config_(config) {}
+  // backend: where registrations run (graph/backend.hpp; default the CPU).
+  explicit Odometry(const OdometryConfig& config, std::shared_ptr<LinearizationBackend> backend = nullptr);
 
   // T_world_frame of a preprocessed frame (with covariances) taken at `stamp` (s). A frame too
   // small to register (empty or dropped scan) gets the prediction and *ok = false; a frame whose
@@ -50,16 +52,17 @@ class Odometry {
 
  private:
   void add_keyframe(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T);
-  GaussianVoxelMap model_at(double resolution) const;  // the keyframes on other voxels
+  std::shared_ptr<const GaussianVoxelMap> model_at(double resolution) const;  // the keyframes on other voxels
 
   OdometryConfig config_;
+  std::shared_ptr<LinearizationBackend> backend_;
   int frames_ = 0;
   bool last_failed_ = false;
   int failed_streak_ = 0;  // frames placed by the prediction in a row
   Eigen::Isometry3d last_ = Eigen::Isometry3d::Identity(), previous_ = Eigen::Isometry3d::Identity();
   std::optional<double> last_stamp_, previous_stamp_;
   std::deque<std::pair<Eigen::Isometry3d, std::shared_ptr<const PointCloud>>> keyframes_;
-  std::unique_ptr<GaussianVoxelMap> model_;
+  std::shared_ptr<const GaussianVoxelMap> model_;
 };
 
 }  // namespace gcmap
