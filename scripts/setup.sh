@@ -9,7 +9,7 @@ packages=(build-essential cmake pkg-config libeigen3-dev libtbb-dev libnanoflann
   libcairo2-dev libpng-dev libjs-three chromium-headless-shell
   libzstd-dev liblz4-dev libbz2-dev libsqlite3-dev
   pybind11-dev python3-dev python3-numpy python3-pytest
-  clang libclang-rt-14-dev libsuitesparse-dev)
+  clang libclang-rt-14-dev libsuitesparse-dev libopenblas0-pthread)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
