@@ -1,8 +1,6 @@
 #include "gcmap/graph/matching_graph.hpp"
 
 #include "gcmap/core/preprocess.hpp"
-#include "gcmap/graph/levenberg_marquardt.hpp"
-#include "gcmap/registration/vgicp.hpp"
 
 namespace gcmap {
 
