@@ -5,6 +5,7 @@
 #include <cmath>
 #include <map>
 
+#include "gcmap/core/error.hpp"
 #include "gcmap/core/gaussian_voxel_map.hpp"
 #include "gcmap/core/preprocess.hpp"
 #include "gcmap/sim/synthetic.hpp"
@@ -147,6 +148,46 @@ TEST(VoxelMap, NoPointLostAtHighLoad) {
     ASSERT_GE(v, 0);
     ASSERT_EQ(map.count(v), 2);
   }
+}
+
+TEST(VoxelMap, RemovingACloudLeavesTheMapOfTheOthers) {
+  // A sliding window: clouds 0..3 in, 0 and 1 out, against a map of 2 and 3 built afresh.
+  std::vector<PointCloud> clouds;
+  std::vector<Eigen::Isometry3d> poses;
+  for (int k = 0; k < 4; ++k) {
+    PointCloud c = make_structured_scene(3000, 20 + k);
+    c.covs.assign(c.size(), Eigen::Matrix3f::Zero());
+    for (size_t i = 0; i < c.size(); ++i) c.covs[i].diagonal() = Eigen::Vector3f(0.01f * (i % 7 + 1), 0.02f, 0.03f);
+    clouds.push_back(std::move(c));
+    poses.push_back(Eigen::Translation3d(1000.0 + 0.7 * k, -500.0, 3.0) * Eigen::AngleAxisd(0.2 * k, Eigen::Vector3d::UnitZ()));
+  }
+  GaussianVoxelMap window(1.0, GaussianVoxelMap::Updates::incremental), fresh(1.0);
+  for (int k = 0; k < 4; ++k) window.insert(clouds[k], poses[k]);
+  window.finalize();
+  const size_t all_voxels = window.num_voxels();
+  window.remove(clouds[0], poses[0]);
+  window.remove(clouds[1], poses[1]);
+  window.finalize();
+  for (int k = 2; k < 4; ++k) fresh.insert(clouds[k], poses[k]);
+  fresh.finalize();
+  ASSERT_EQ(window.num_voxels(), fresh.num_voxels());
+  EXPECT_LT(window.num_voxels(), all_voxels);  // the emptied voxels are gone, not kept at zero
+  for (size_t v = 0; v < fresh.num_voxels(); ++v) {
+    const int w = window.find(fresh.coord(static_cast<int>(v)));
+    ASSERT_GE(w, 0);
+    EXPECT_EQ(window.count(w), fresh.count(static_cast<int>(v)));
+    EXPECT_LT((window.mean(w) - fresh.mean(static_cast<int>(v))).norm(), 1e-3f);  // float ulp at 1 km
+    EXPECT_LT((window.cov(w) - fresh.cov(static_cast<int>(v))).norm(), 1e-6f);
+  }
+  GaussianVoxelMap empty(1.0, GaussianVoxelMap::Updates::incremental);
+  EXPECT_THROW(empty.remove(clouds[0], poses[0]), Error);
+  // A map built once keeps no accumulators to take a cloud out of, or to add one to.
+  GaussianVoxelMap kept(1.0, GaussianVoxelMap::Updates::incremental);
+  for (int k = 2; k < 4; ++k) kept.insert(clouds[k], poses[k]);
+  kept.finalize();
+  EXPECT_LT(fresh.memory_bytes(), 0.7 * kept.memory_bytes());
+  EXPECT_THROW(fresh.remove(clouds[2], poses[2]), Error);
+  EXPECT_THROW(fresh.insert(clouds[0], poses[0]), Error);
 }
 
 TEST(Overlap, FractionOfSourcePointsInOccupiedVoxels) {

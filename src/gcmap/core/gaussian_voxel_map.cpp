@@ -7,8 +7,8 @@
 
 namespace gcmap {
 
-GaussianVoxelMap::GaussianVoxelMap(double resolution)
-    : resolution_(resolution), inv_resolution_(static_cast<float>(1.0 / resolution)) {
+GaussianVoxelMap::GaussianVoxelMap(double resolution, Updates updates)
+    : resolution_(resolution), inv_resolution_(static_cast<float>(1.0 / resolution)), updates_(updates) {
   if (!(resolution > 0.0) || !std::isfinite(resolution)) throw Error("voxel map resolution must be positive");
   rehash(1024);
 }
@@ -44,6 +44,7 @@ int GaussianVoxelMap::find_or_insert(const Eigen::Vector3i& coord) {
 
 void GaussianVoxelMap::insert(const PointCloud& cloud, const Eigen::Isometry3d& T) {
   if (!cloud.has_covs()) throw Error("voxel map insert: the cloud has no covariances");
+  if (finalized_ && updates_ == Updates::once) throw Error("voxel map insert: the map was built once (Updates::once)");
   const Eigen::Matrix3d R = T.linear();
   const Eigen::Vector3d t = T.translation();
   for (size_t i = 0; i < cloud.size(); ++i) {
@@ -55,13 +56,64 @@ void GaussianVoxelMap::insert(const PointCloud& cloud, const Eigen::Isometry3d& 
   }
 }
 
+void GaussianVoxelMap::remove(const PointCloud& cloud, const Eigen::Isometry3d& T) {
+  if (!cloud.has_covs()) throw Error("voxel map remove: the cloud has no covariances");
+  if (finalized_ && updates_ == Updates::once) throw Error("voxel map remove: the map was built once (Updates::once)");
+  const Eigen::Matrix3d R = T.linear();
+  const Eigen::Vector3d t = T.translation();
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3d p = R * cloud.points[i].cast<double>() + t;
+    const int v = find(voxel_coord(p.cast<float>(), inv_resolution_));
+    if (v < 0 || counts_[v] == 0) throw Error("voxel map remove: the cloud was not inserted with this pose");
+    if (--counts_[v] == 0) {
+      // Exact zeros: what rounding left would bias the voxel if it fills again.
+      sum_means_[v].setZero();
+      sum_covs_[v].setZero();
+      has_empty_ = true;
+      continue;
+    }
+    sum_means_[v] -= p;
+    sum_covs_[v] -= R * cloud.covs[i].cast<double>() * R.transpose();
+  }
+}
+
+void GaussianVoxelMap::drop_empty_voxels() {
+  size_t kept = 0;
+  for (size_t v = 0; v < coords_.size(); ++v) {
+    if (counts_[v] == 0) continue;
+    coords_[kept] = coords_[v];
+    counts_[kept] = counts_[v];
+    sum_means_[kept] = sum_means_[v];
+    sum_covs_[kept] = sum_covs_[v];
+    ++kept;
+  }
+  coords_.resize(kept);
+  counts_.resize(kept);
+  sum_means_.resize(kept);
+  sum_covs_.resize(kept);
+  rehash(slots_.size());
+  has_empty_ = false;
+}
+
 void GaussianVoxelMap::finalize() {
+  if (has_empty_) drop_empty_voxels();
   means_.resize(coords_.size());
   covs_.resize(coords_.size());
   for (size_t v = 0; v < coords_.size(); ++v) {
     means_[v] = (sum_means_[v] / counts_[v]).cast<float>();
     covs_[v] = (sum_covs_[v] / counts_[v]).cast<float>();
   }
+  finalized_ = true;
+  if (updates_ == Updates::once) {
+    std::vector<Eigen::Vector3d>().swap(sum_means_);
+    std::vector<Eigen::Matrix3d>().swap(sum_covs_);
+  }
+}
+
+size_t GaussianVoxelMap::memory_bytes() const {
+  return slots_.capacity() * sizeof(Slot) + coords_.capacity() * sizeof(Eigen::Vector3i) + counts_.capacity() * sizeof(int) +
+         sum_means_.capacity() * sizeof(Eigen::Vector3d) + sum_covs_.capacity() * sizeof(Eigen::Matrix3d) +
+         means_.capacity() * sizeof(Eigen::Vector3f) + covs_.capacity() * sizeof(Eigen::Matrix3f);
 }
 
 double overlap(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& T) {

@@ -47,7 +47,11 @@ inline uint32_t hash_voxel(const Eigen::Vector3i& c) {
 // and the point count. Storage is a flat open-addressing table with linear probing.
 class GaussianVoxelMap {
  public:
-  explicit GaussianVoxelMap(double resolution);
+  // once: built by inserts and one finalize(), which frees the double accumulators (almost half
+  // the map; a mapping run keeps hundreds of submap maps). incremental: keeps them, so clouds can
+  // be inserted and removed after finalize() (the odometry's sliding window).
+  enum class Updates { once, incremental };
+  explicit GaussianVoxelMap(double resolution, Updates updates = Updates::once);
 
   double resolution() const { return resolution_; }
   float inv_resolution() const { return inv_resolution_; }
@@ -55,6 +59,10 @@ class GaussianVoxelMap {
 
   // Adds a cloud (with covariances) mapped by T_map_cloud. Call finalize() before lookups.
   void insert(const PointCloud& cloud, const Eigen::Isometry3d& T_map_cloud = Eigen::Isometry3d::Identity());
+  // Takes back a cloud inserted earlier with the same T_map_cloud (a sliding window of frames
+  // costs one frame per step instead of the whole window). Voxels left empty disappear at
+  // finalize(), which then renumbers the voxels.
+  void remove(const PointCloud& cloud, const Eigen::Isometry3d& T_map_cloud);
   void finalize();
 
   // Index of the voxel holding p, or -1.
@@ -76,7 +84,7 @@ class GaussianVoxelMap {
 
   const std::vector<Eigen::Vector3f>& means() const { return means_; }
   const std::vector<Eigen::Matrix3f>& covs() const { return covs_; }
-
+  size_t memory_bytes() const;  // heap held, capacities included
 
  private:
   struct Slot {
@@ -85,10 +93,14 @@ class GaussianVoxelMap {
   };
   int find_or_insert(const Eigen::Vector3i& coord);
   void rehash(size_t capacity);
+  void drop_empty_voxels();
 
   double resolution_;
   float inv_resolution_;
+  Updates updates_;
+  bool finalized_ = false;
   uint32_t mask_ = 0;
+  bool has_empty_ = false;
   std::vector<Slot> slots_;
   std::vector<Eigen::Vector3i> coords_;
   std::vector<int> counts_;

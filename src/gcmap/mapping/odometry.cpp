@@ -43,9 +43,15 @@ void Odometry::set_pose(const Eigen::Isometry3d& T, std::optional<double> stamp)
 }
 
 void Odometry::add_keyframe(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T) {
+  if (!model_) model_ = std::make_shared<GaussianVoxelMap>(config_.voxel_resolution, GaussianVoxelMap::Updates::incremental);
+  if (model_.use_count() > 1) model_ = std::make_shared<GaussianVoxelMap>(*model_);
   keyframes_.emplace_back(T, frame);
-  while (static_cast<int>(keyframes_.size()) > config_.model_keyframes) keyframes_.pop_front();
-  model_ = model_at(config_.voxel_resolution);
+  model_->insert(*frame, T);
+  while (static_cast<int>(keyframes_.size()) > config_.model_keyframes) {
+    model_->remove(*keyframes_.front().second, keyframes_.front().first);
+    keyframes_.pop_front();
+  }
+  model_->finalize();
 }
 
 Eigen::Isometry3d Odometry::track(const std::shared_ptr<const PointCloud>& frame, std::optional<double> stamp, bool* ok) {

@@ -19,7 +19,8 @@ class Odometry {
 
   // T_world_frame of a preprocessed frame (with covariances) taken at `stamp` (s). A frame too
   // small to register (empty or dropped scan) gets the prediction and *ok = false; a frame whose
-  // registration fails (see estimate) gets the prediction and last_failed().
+  // registration fails (see estimate) gets the prediction and last_failed(). The model keeps the
+  // frame: it must not change afterwards (it is subtracted from the model as it ages out).
   Eigen::Isometry3d track(const std::shared_ptr<const PointCloud>& frame, std::optional<double> stamp = std::nullopt,
                           bool* ok = nullptr);
   // What a prediction rests on: no motion known (the second frame, after a gap of
@@ -62,7 +63,9 @@ class Odometry {
   Eigen::Isometry3d last_ = Eigen::Isometry3d::Identity(), previous_ = Eigen::Isometry3d::Identity();
   std::optional<double> last_stamp_, previous_stamp_;
   std::deque<std::pair<Eigen::Isometry3d, std::shared_ptr<const PointCloud>>> keyframes_;
-  std::shared_ptr<const GaussianVoxelMap> model_;
+  // Updated in place (newest keyframe in, oldest out) unless a registration backend still holds
+  // it (a GPU caches its last target): then copied first, so what it holds never changes.
+  std::shared_ptr<GaussianVoxelMap> model_;
 };
 
 }  // namespace gcmap
