@@ -43,6 +43,23 @@ Json device_memory_json(const cuda::CudaBackend& gpu, const MappingPipeline& pip
   return j;
 }
 
+// What the submaps hold on the host at the end of the run: the part of the memory that grows
+// with the map (the rest is bounded by the window of the front end).
+Json host_memory_json(const MappingPipeline& pipeline) {
+  size_t clouds = 0, sources = 0, maps = 0;
+  for (const Submap& s : pipeline.submaps()) {
+    if (s.cloud) clouds += s.cloud->memory_bytes();
+    if (s.factor_source) sources += s.factor_source->memory_bytes();
+    if (s.voxels) maps += s.voxels->memory_bytes();
+  }
+  Json j = Json::object();
+  j["submap_cloud_mb"] = clouds / 1e6;
+  j["factor_source_mb"] = sources / 1e6;
+  j["voxel_map_mb"] = maps / 1e6;
+  j["mb_per_submap"] = (clouds + sources + maps) / 1e6 / std::max<size_t>(pipeline.submaps().size(), 1);
+  return j;
+}
+
 void check_writable(const std::string& dir) {
   std::error_code ec;
   fs::create_directories(dir, ec);
@@ -111,6 +128,7 @@ void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapR
     Json warnings = Json::array();  // e.g. a truncated bag: mapped up to the damage
     for (const std::string& w : input_warnings) warnings.push_back(w);
     stats["input_warnings"] = warnings;
+    stats["host_memory"] = host_memory_json(pipeline);
     if (const auto* gpu = dynamic_cast<const cuda::CudaBackend*>(&pipeline.backend())) stats["device_memory"] = device_memory_json(*gpu, pipeline);
     write_file_atomic((out / "stats.json").string(), [&](std::ostream& s) { s << stats.dump() << "\n"; });
     write_file_atomic((out / "config.yaml").string(), [&](std::ostream& s) { s << o.config.to_yaml(); });

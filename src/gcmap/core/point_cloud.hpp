@@ -22,6 +22,11 @@ struct PointCloud {
   bool has_times() const { return !times.empty(); }
   bool has_labels() const { return !labels.empty(); }
 
+  size_t memory_bytes() const {  // heap held, capacities included
+    return points.capacity() * sizeof(Eigen::Vector3f) + covs.capacity() * sizeof(Eigen::Matrix3f) +
+           (intensities.capacity() + times.capacity()) * sizeof(float) + labels.capacity() * sizeof(uint32_t);
+  }
+
   // Keeps the points whose flag is true, in order, for every channel present.
   void filter(const std::vector<char>& keep);
   // The same as a copy, without copying what is dropped.

@@ -72,15 +72,20 @@ std::vector<Eigen::Isometry3d> Mapper::trajectory() const {
 }
 
 PointCloud Mapper::assemble_map(double resolution) const {
+  // Points only, placed straight into the output frame (first frame identity, like the
+  // trajectory): the whole map exists once before downsampling, the peak of a run's memory.
+  const Eigen::Isometry3d T_out_world =
+      !frames_.empty() && frames_[0].submap >= 0 ? keyframe_world(0).inverse() : Eigen::Isometry3d::Identity();
+  size_t total = 0;
+  for (const Submap& s : submaps()) total += s.cloud->size();
   PointCloud map;
+  map.points.resize(total);
+  size_t offset = 0;
   for (const Submap& s : submaps()) {
-    const PointCloud c = transformed(*s.cloud, global_.pose(s.id));
-    map.points.insert(map.points.end(), c.points.begin(), c.points.end());
-  }
-  if (!frames_.empty() && !submaps().empty()) {
-    // Express the map in the output frame (first frame identity), like the trajectory.
-    const FrameRecord& first = frames_[0];
-    if (first.submap >= 0) map = transformed(map, keyframe_world(0).inverse());
+    const Eigen::Isometry3d T = T_out_world * global_.pose(s.id);
+    const Eigen::Matrix3f R = T.linear().cast<float>();
+    const Eigen::Vector3f t = T.translation().cast<float>();
+    for (const Eigen::Vector3f& p : s.cloud->points) map.points[offset++] = R * p + t;
   }
   return voxel_downsample(map, resolution);
 }

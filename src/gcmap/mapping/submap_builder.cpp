@@ -20,8 +20,7 @@ PointCloud evenly_subsampled(PointCloud cloud, int n) {
   std::vector<char> keep(cloud.size(), 0);
   const double stride = static_cast<double>(cloud.size()) / n;
   for (int i = 0; i < n; ++i) keep[static_cast<size_t>(i * stride)] = 1;
-  cloud.filter(keep);
-  return cloud;
+  return cloud.selected(keep);  // not filter(): submaps keep their clouds, so no spare capacity
 }
 
 SubmapBuilder::SubmapBuilder(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend)
