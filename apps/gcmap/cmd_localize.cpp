@@ -50,7 +50,8 @@ int localize(const LocalizeOptions& o) {
   FolderScanSource source(o.input, o.start, o.max_frames);
   fs::create_directories(o.output);
   auto prior = std::make_shared<PriorMap>(PriorMap{std::move(s.submaps), std::move(s.T_world_submap)});
-  Localizer localizer(prior, config, cuda::make_backend(parse_device(o.device, "--device")), {source.kitti_hdl64()});
+  Localizer localizer(prior, config, cuda::make_backend(parse_device(o.device, "--device")),
+                      PipelineOptions{.kitti_hdl64 = source.kitti_hdl64(), .elevation_calibration = nullptr});
   if (!o.initial_pose.empty()) localizer.set_initial_pose(parse_pose_option("--initial-pose", o.initial_pose));
   Progress progress("frame", source.size_hint(), o.quiet);
   size_t tracking = 0;
