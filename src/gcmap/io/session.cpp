@@ -237,11 +237,18 @@ void write_session(const std::string& dir, const Session& s) {
   if (s.submaps.size() != s.T_world_submap.size() || s.stamps.size() != s.trajectory.size())
     throw Error(dir + ": inconsistent session (submaps and poses, or frames and stamps, differ in number)");
   write_folder(dir, [&](const fs::path& tmp) {
-    std::string bin(kMagic, sizeof kMagic);
-    put<uint32_t>(bin, kSessionVersion);
-    put<uint32_t>(bin, static_cast<uint32_t>(s.submaps.size()));
-    for (size_t k = 0; k < s.submaps.size(); ++k) put_submap(bin, s.submaps[k], s.T_world_submap[k]);
-    write_file_atomic((tmp / "submaps.bin").string(), [&](std::ostream& o) { o.write(bin.data(), bin.size()); });
+    write_file_atomic((tmp / "submaps.bin").string(), [&](std::ostream& o) {
+      // A submap at a time: the whole file in memory would be the largest buffer of a run.
+      std::string bin(kMagic, sizeof kMagic);
+      put<uint32_t>(bin, kSessionVersion);
+      put<uint32_t>(bin, static_cast<uint32_t>(s.submaps.size()));
+      for (size_t k = 0; k < s.submaps.size(); ++k) {
+        put_submap(bin, s.submaps[k], s.T_world_submap[k]);
+        o.write(bin.data(), static_cast<std::streamsize>(bin.size()));
+        bin.clear();
+      }
+      o.write(bin.data(), static_cast<std::streamsize>(bin.size()));
+    });
     Trajectory t;
     t.poses = s.trajectory;
     t.stamps = s.stamps;
