@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <fstream>
 #include <sstream>
 
@@ -189,6 +190,21 @@ TEST(Vgicp, SingularFusedCovariancesDropOutOfEverySum) {
   EXPECT_EQ(frozen.num_inliers, inliers);
   EXPECT_NEAR(eval.error, error, 1e-4 * error);
   EXPECT_EQ(frozen.error, eval.error);
+
+  // Associations recorded by the linearization stand for T_association at any trial pose.
+  std::vector<int> associations;
+  const VgicpLinearization recorded = linearize_vgicp(source, voxels, T, associations);
+  EXPECT_EQ(recorded.error, lin.error);
+  EXPECT_EQ(std::count_if(associations.begin(), associations.end(), [](int v) { return v >= 0; }),
+            std::count_if(source.points.begin(), source.points.end(), [&](const Eigen::Vector3f& p) {
+              return voxels.lookup(PointTransform(T) * p) >= 0;
+            }));
+  const Eigen::Isometry3d trial = T * se3_exp((Vector6d() << 0.02, 0.01, -0.03, 0.05, 0.1, -0.02).finished());
+  const VgicpError by_pose = evaluate_vgicp(source, voxels, trial, T), by_index = evaluate_vgicp(source, voxels, trial, associations);
+  EXPECT_NE(by_pose.error, frozen.error);
+  EXPECT_EQ(by_index.error, by_pose.error);
+  EXPECT_EQ(by_index.num_inliers, by_pose.num_inliers);
+  EXPECT_THROW(evaluate_vgicp(source, voxels, trial, std::span<const int>(associations).first(10)), Error);
 }
 
 TEST(Registration, RecoversSyntheticTransform) {

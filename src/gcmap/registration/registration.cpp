@@ -10,12 +10,9 @@ namespace {
 struct VgicpProblem {
   const PointCloud& source;
   const GaussianVoxelMap& target;
-  Eigen::Isometry3d T_association = Eigen::Isometry3d::Identity();
-  VgicpLinearization linearize(const Eigen::Isometry3d& T) {
-    T_association = T;
-    return linearize_vgicp(source, target, T);
-  }
-  VgicpError evaluate(const Eigen::Isometry3d& T) const { return evaluate_vgicp(source, target, T, T_association); }
+  std::vector<int> associations;  // of the last linearization
+  VgicpLinearization linearize(const Eigen::Isometry3d& T) { return linearize_vgicp(source, target, T, associations); }
+  VgicpError evaluate(const Eigen::Isometry3d& T) const { return evaluate_vgicp(source, target, T, associations); }
 };
 
 struct GicpProblem {
@@ -34,7 +31,7 @@ struct GicpProblem {
 
 RegistrationResult align_vgicp(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& init,
                                const RegistrationConfig& config) {
-  VgicpProblem problem{source, target};
+  VgicpProblem problem{source, target, {}};
   return align(problem, init, config);
 }
 

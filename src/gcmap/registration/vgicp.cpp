@@ -1,5 +1,6 @@
 #include "gcmap/registration/vgicp.hpp"
 
+#include "gcmap/core/error.hpp"
 #include "gcmap/registration/gaussian_terms.hpp"
 
 namespace gcmap {
@@ -22,6 +23,22 @@ VgicpLinearization linearize_vgicp(const PointCloud& source, const GaussianVoxel
   const TargetFrameSums sums = detail::accumulate_target_frame(
       source, target, T_target_source, [&](size_t, const Eigen::Vector3f& q) { return target.lookup(q); });
   return expand_to_both_poses(sums, T_target_source);
+}
+
+VgicpLinearization linearize_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
+                                   const Eigen::Isometry3d& T_target_source, std::vector<int>& associations) {
+  associations.resize(source.size());
+  const TargetFrameSums sums =
+      detail::accumulate_target_frame(source, target, T_target_source, [&](size_t i, const Eigen::Vector3f& q) {
+        return associations[i] = target.lookup(q);  // distinct i per task
+      });
+  return expand_to_both_poses(sums, T_target_source);
+}
+
+VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
+                          const Eigen::Isometry3d& T_target_source, std::span<const int> associations) {
+  if (associations.size() != source.size()) throw Error("evaluate_vgicp: associations do not match the source");
+  return detail::sum_errors(source, target, T_target_source, [&](size_t i, const Eigen::Vector3f&) { return associations[i]; });
 }
 
 VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target,

@@ -2,6 +2,9 @@
 // VGICP matching cost between a source cloud i and a target Gaussian voxel map j
 // (shared/docs/vgicp-factor-math.md). T_target_source = T_j^-1 T_i maps source points into the
 // target frame; per inlier point, e = mu' - T mu, Omega = (C' + R C R^T)^-1, cost e^T Omega e.
+#include <span>
+#include <vector>
+
 #include "gcmap/core/gaussian_voxel_map.hpp"
 #include "gcmap/core/point_cloud.hpp"
 #include "gcmap/core/se3.hpp"
@@ -37,6 +40,14 @@ VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& targ
 // newly matched points to the sum, so a better alignment can show a larger error and LM would stall.
 VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
                           const Eigen::Isometry3d& T_target_source, const Eigen::Isometry3d& T_association);
+
+// The same pair for a caller that can keep 4 bytes per source point (one registration; the global
+// graph's thousands of factors cannot): the linearization records each point's voxel (-1: none),
+// and the evaluation reuses it instead of transforming and looking up again. Same results.
+VgicpLinearization linearize_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
+                                   const Eigen::Isometry3d& T_target_source, std::vector<int>& associations);
+VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
+                          const Eigen::Isometry3d& T_target_source, std::span<const int> associations);
 
 // The accumulation is done in the target frame (B = de/dd_j = [-[q]x, I]); the source blocks follow
 // exactly from A = -B Ad(T_target_source), so a binary factor costs no more than a unary one.
