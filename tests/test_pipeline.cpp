@@ -95,6 +95,16 @@ TEST_F(SmallDrive, ScanByScanMapsAccuratelyAndClosesTheLoop) {
   EXPECT_EQ(stats.frames, scans->size());
   EXPECT_EQ(stats.mapper.global.per_submap.size(), static_cast<size_t>(n));
   EXPECT_GT(pipeline.map(0.1).size(), 10000u);
+
+  // Assembled in slabs of about 2,000 points, the map equals one downsample of every submap point.
+  const PointCloud whole = pipeline.mapper().assemble_map(0.1, std::numeric_limits<size_t>::max()),
+                   slabs = pipeline.mapper().assemble_map(0.1, 2000);
+  ASSERT_EQ(slabs.size(), whole.size());
+  size_t submap_points = 0;
+  for (const Submap& s : pipeline.submaps()) submap_points += s.cloud->size();
+  EXPECT_LT(whole.size(), submap_points);  // voxels shared by several points, across slabs too
+  for (size_t i = 0; i < whole.size(); ++i) ASSERT_EQ(slabs.points[i], whole.points[i]) << i;
+  EXPECT_THROW(pipeline.mapper().assemble_map(0.0), Error);
 }
 
 TEST_F(SmallDrive, BadScansAreUnusableFramesAndMisuseIsAnError) {

@@ -1,5 +1,12 @@
 #include "gcmap/mapping/mapper.hpp"
 
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/preprocess.hpp"
 #include "gcmap/core/se3.hpp"
@@ -71,23 +78,115 @@ std::vector<Eigen::Isometry3d> Mapper::trajectory() const {
   return out;
 }
 
-PointCloud Mapper::assemble_map(double resolution) const {
-  // Points only, placed straight into the output frame (first frame identity, like the
-  // trajectory): the whole map exists once before downsampling, the peak of a run's memory.
+namespace {
+
+struct Placement {
+  Eigen::Matrix3f R;
+  Eigen::Vector3f t;
+};
+
+// One compiled transform for every pass: a point's slab must not depend on how a pass was inlined
+// (-march=native contracts multiply-adds differently per call site).
+[[gnu::noinline]] void place(const Placement& T, const Eigen::Vector3f* in, size_t n, Eigen::Vector3f* out) {
+  for (size_t i = 0; i < n; ++i) out[i] = T.R * in[i] + T.t;
+}
+
+// The map is assembled in slabs of voxel columns along x (a voxel never straddles two), so the
+// transient is a block's points, not the whole drive's. voxel_downsample orders voxels by (x, y, z)
+// and sums each in index order, so concatenated slabs equal one downsample of everything.
+class SlabAssembler {
+ public:
+  SlabAssembler(const std::vector<Submap>& submaps, std::vector<Eigen::Isometry3d> placements, double resolution)
+      : submaps_(submaps), inv_(1.0 / resolution), resolution_(resolution) {
+    for (const Eigen::Isometry3d& T : placements) placed_.push_back({T.linear().cast<float>(), T.translation().cast<float>()});
+  }
+
+  PointCloud assemble(size_t block_points) {
+    if (!histogram()) return PointCloud{};
+    std::vector<PointCloud> slabs;
+    size_t total = 0;
+    for (size_t begin = 0; begin < counts_.size();) {
+      size_t end = begin, n = 0;
+      while (end < counts_.size() && (n == 0 || n + counts_[end] <= block_points)) n += counts_[end++];
+      slabs.push_back(voxel_downsample(gather(begin, end, n), resolution_));
+      total += slabs.back().size();
+      begin = end;
+    }
+    PointCloud map;
+    map.points.reserve(total);
+    for (const PointCloud& slab : slabs) map.points.insert(map.points.end(), slab.points.begin(), slab.points.end());
+    return map;
+  }
+
+ private:
+  // The x voxel column, floored as voxel_downsample floors it.
+  int64_t column(float x) const { return static_cast<int64_t>(std::floor(static_cast<double>(x) * inv_)); }
+  size_t bin(float x) const { return static_cast<size_t>((column(x) - lo_) >> shift_); }
+
+  template <typename Fn>
+  void for_each_point(size_t s, Fn&& fn) const {
+    std::array<Eigen::Vector3f, 256> placed;
+    const std::vector<Eigen::Vector3f>& points = submaps_[s].cloud->points;
+    for (size_t b = 0; b < points.size(); b += placed.size()) {
+      const size_t n = std::min(placed.size(), points.size() - b);
+      place(placed_[s], points.data() + b, n, placed.data());
+      for (size_t i = 0; i < n; ++i) fn(placed[i]);
+    }
+  }
+
+  // Points per column bin (columns coarsened to at most 2^20 bins); false without points.
+  bool histogram() {
+    lo_ = std::numeric_limits<int64_t>::max();
+    int64_t hi = std::numeric_limits<int64_t>::min();
+    for (size_t s = 0; s < submaps_.size(); ++s)
+      for_each_point(s, [&](const Eigen::Vector3f& q) {
+        lo_ = std::min(lo_, column(q.x()));
+        hi = std::max(hi, column(q.x()));
+      });
+    if (hi < lo_) return false;
+    while (((hi - lo_) >> shift_) >= (int64_t{1} << 20)) ++shift_;
+    counts_.assign(static_cast<size_t>((hi - lo_) >> shift_) + 1, 0);
+    for (size_t s = 0; s < submaps_.size(); ++s) for_each_point(s, [&](const Eigen::Vector3f& q) { ++counts_[bin(q.x())]; });
+    return true;
+  }
+
+  // The n points in bins [begin, end), in submap order.
+  PointCloud gather(size_t begin, size_t end, size_t n) const {
+    std::vector<size_t> offsets(submaps_.size() + 1, 0);
+    tbb::parallel_for(size_t{0}, submaps_.size(), [&](size_t s) {
+      for_each_point(s, [&](const Eigen::Vector3f& q) { offsets[s + 1] += bin(q.x()) - begin < end - begin; });
+    });
+    for (size_t s = 0; s < submaps_.size(); ++s) offsets[s + 1] += offsets[s];
+    if (offsets.back() != n) throw Error("assemble_map: a slab's points were counted differently");
+    PointCloud slab;
+    slab.points.resize(n);
+    tbb::parallel_for(size_t{0}, submaps_.size(), [&](size_t s) {
+      size_t k = offsets[s];
+      for_each_point(s, [&](const Eigen::Vector3f& q) {
+        if (bin(q.x()) - begin < end - begin) slab.points[k++] = q;
+      });
+    });
+    return slab;
+  }
+
+  const std::vector<Submap>& submaps_;
+  std::vector<Placement> placed_;
+  double inv_, resolution_;
+  int64_t lo_ = 0;
+  int shift_ = 0;
+  std::vector<size_t> counts_;
+};
+
+}  // namespace
+
+PointCloud Mapper::assemble_map(double resolution, size_t block_points) const {
+  if (!(resolution > 0.0)) throw Error("assemble_map: resolution must be positive");
+  // Points only, in the output frame (first frame identity, like the trajectory).
   const Eigen::Isometry3d T_out_world =
       !frames_.empty() && frames_[0].submap >= 0 ? keyframe_world(0).inverse() : Eigen::Isometry3d::Identity();
-  size_t total = 0;
-  for (const Submap& s : submaps()) total += s.cloud->size();
-  PointCloud map;
-  map.points.resize(total);
-  size_t offset = 0;
-  for (const Submap& s : submaps()) {
-    const Eigen::Isometry3d T = T_out_world * global_.pose(s.id);
-    const Eigen::Matrix3f R = T.linear().cast<float>();
-    const Eigen::Vector3f t = T.translation().cast<float>();
-    for (const Eigen::Vector3f& p : s.cloud->points) map.points[offset++] = R * p + t;
-  }
-  return voxel_downsample(map, resolution);
+  std::vector<Eigen::Isometry3d> placements;
+  for (const Submap& s : submaps()) placements.push_back(T_out_world * global_.pose(s.id));
+  return SlabAssembler(submaps(), std::move(placements), resolution).assemble(std::max<size_t>(block_points, 1));
 }
 
 }  // namespace gcmap

@@ -43,8 +43,9 @@ class Mapper {
   const GlobalMappingStats& global_stats() const { return global_.stats(); }
   // The transform from the optimizer's world (submap 0's frame) to the output frame (frame 0).
   Eigen::Isometry3d output_from_world() const;
-  // All submaps in the output frame, voxel-downsampled.
-  PointCloud assemble_map(double resolution) const;
+  // All submaps in the output frame, voxel-downsampled; at most about block_points points (more
+  // only where one voxel column holds more) exist at once before downsampling.
+  PointCloud assemble_map(double resolution, size_t block_points = size_t{1} << 22) const;
 
  private:
   struct FrameRecord {
