@@ -1,6 +1,10 @@
 // Localization on a prior map built by the pipeline from another recording of the same world.
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
 #include "gcmap/core/error.hpp"
 #include "gcmap/mapping/localizer.hpp"
 #include "gcmap/sim/simulator.hpp"
@@ -51,6 +55,41 @@ TEST_F(PriorMapOfSmallBlock, TracksFromAnInitialPoseAndFromGlobalInitialization)
     }
     EXPECT_EQ(loc.frames().front().status, global ? LocalizationStatus::relocalized : LocalizationStatus::tracking);
   }
+}
+
+TEST_F(PriorMapOfSmallBlock, SweepsDistortedByMotionAreDeskewedBeforeTheMap) {
+  // The same route at about 11 m/s, each firing at its own pose: a sweep is smeared by a metre.
+  // Taken as instantaneous, the scan registers near its mid-sweep pose, half a sweep from the stamp.
+  sim::SimulationConfig sc;
+  sc.scenario = "small";
+  sc.realism = sim::RealismConfig::none();
+  sc.realism->motion_distortion = true;
+  const sim::Simulator moving(sc);
+  // From the third frame on: the odometry knows no motion for the first frame, and registers the
+  // second on the first's smeared sweep.
+  double worst[2] = {0.0, 0.0}, squares[2] = {0.0, 0.0};
+  for (bool with_times : {false, true}) {
+    Localizer loc(*prior, MappingConfig{});
+    loc.set_initial_pose(truth(20));
+    for (size_t f = 20; f < 40; ++f) {
+      PointCloud sweep = moving.scan(f);
+      ASSERT_TRUE(sweep.has_times());
+      if (!with_times) sweep.times.clear();
+      const LocalizedFrame lf = loc.add_scan(std::move(sweep), 0.1 * f);
+      ASSERT_NE(lf.status, LocalizationStatus::lost) << "frame " << f;
+      EXPECT_EQ(lf.deskewed, with_times && f > 20) << "frame " << f;
+      if (f < 22) continue;
+      const double e = test::translation_error(lf.T_map_frame, truth(f));
+      worst[with_times] = std::max(worst[with_times], e);
+      squares[with_times] += e * e;
+    }
+  }
+  const double rms[2] = {std::sqrt(squares[0] / 18), std::sqrt(squares[1] / 18)};
+  std::printf("localization of distorted sweeps, rms / largest error: without times %.3f / %.3f m, deskewed %.3f / %.3f m\n",
+              rms[0], worst[0], rms[1], worst[1]);
+  EXPECT_GT(rms[0], 0.5);
+  EXPECT_LT(rms[1], 0.05);
+  EXPECT_LT(worst[1], 0.15);  // a corner: the yaw rate changes within the sweep
 }
 
 TEST_F(PriorMapOfSmallBlock, AChangedWorldIsReportedNeverMistaken) {

@@ -33,6 +33,7 @@ Json frames_json(const std::vector<LocalizedFrame>& frames, int start) {
     j["status"] = to_string(f.status);
     j["map_overlap"] = f.map_overlap;
     j["prior_submaps"] = f.prior_submaps;
+    j["deskewed"] = f.deskewed;
     j["ms"] = f.ms;
     all.push_back(j);
   }

@@ -26,7 +26,7 @@ Localizer::Localizer(std::shared_ptr<const PriorMap> prior, const MappingConfig&
       config_(config),
       backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
       options_(with_elevation_calibration(std::move(options), config.preprocess)),
-      odometry_(config.odometry, backend_) {
+      odometry_(config_, backend_) {
   config_.validate();
   if (!prior_ || prior_->submaps.empty()) throw Error("localize: the prior map has no submaps");
   for (const Submap& s : prior_->submaps) {
@@ -129,8 +129,11 @@ LocalizedFrame Localizer::add_scan(PointCloud scan, double stamp) {
   LocalizedFrame f;
   f.index = static_cast<int>(frames_.size());
   f.stamp = stamp;
-  const std::shared_ptr<const PointCloud> cloud = prepare_scan(std::move(scan), stamp, config_, options_).cloud;
-  odometry_poses_.push_back(odometry_.track(cloud));
+  // Deskewed in place by the odometry: registered on the map, it gives the pose at the stamp.
+  const std::shared_ptr<PointCloud> cloud = prepare_scan(std::move(scan), stamp, config_, options_).cloud;
+  const SweepEstimate sweep = odometry_.track(cloud, stamp);
+  odometry_poses_.push_back(sweep.T_world_frame);
+  f.deskewed = sweep.deskewed;
   const bool usable = cloud && cloud->size() >= 100;
   const LocalizedFrame* last = frames_.empty() ? nullptr : &frames_.back();
   // Dead reckoning by odometry from the last pose, also while lost: the map may take the frame back.

@@ -5,7 +5,6 @@
 #include <memory>
 #include <optional>
 
-#include "gcmap/mapping/odometry.hpp"
 #include "gcmap/mapping/pipeline.hpp"
 
 namespace gcmap {
@@ -26,6 +25,7 @@ struct LocalizedFrame {
   Eigen::Isometry3d T_map_frame = Eigen::Isometry3d::Identity();  // the prediction while lost
   double map_overlap = 0.0;  // fraction of the frame's points in prior-map voxels
   int prior_submaps = 0;     // prior submaps the frame was matched against
+  bool deskewed = false;     // motion-compensated by the odometry (per-point times, preprocess.deskew)
   double ms = 0.0;
 };
 
@@ -54,7 +54,7 @@ class Localizer {
   MappingConfig config_;
   std::shared_ptr<LinearizationBackend> backend_;
   PipelineOptions options_;
-  Odometry odometry_;
+  SweepOdometry odometry_;
   ScanContextDatabase places_;
   std::vector<std::pair<int, int>> place_keyframe_;  // (submap, keyframe index)
   std::optional<Eigen::Isometry3d> initial_;

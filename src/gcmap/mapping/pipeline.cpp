@@ -8,7 +8,6 @@
 #include <algorithm>
 #include <cmath>
 
-#include "gcmap/core/deskew.hpp"
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/se3.hpp"
 #include "gcmap/mapping/preprocess_scan.hpp"
@@ -66,7 +65,7 @@ MappingPipeline::MappingPipeline(const MappingConfig& config, std::shared_ptr<Li
     : config_(config),
       backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
       options_(with_elevation_calibration(std::move(options), config.preprocess)),
-      odometry_(config.odometry, backend_),
+      odometry_(config, backend_),
       mapper_(config, backend_) {}
 
 PreparedScan MappingPipeline::prepare(PointCloud raw, double stamp) const {
@@ -102,67 +101,6 @@ Frame MappingPipeline::add_scan(PointCloud scan, double stamp, std::optional<Eig
   return add_prepared(prepare(std::move(scan), stamp), T_odom);
 }
 
-Eigen::Isometry3d MappingPipeline::track(const std::shared_ptr<PointCloud>& cloud, double stamp,
-                                         const std::optional<Eigen::Isometry3d>& T_odom, Frame& f) {
-  const size_t n = odometry_poses_.size();
-  const double dt = n ? stamp - stamps_[n - 1] : 0.0;
-  const bool timed = cloud && cloud->has_times() && config_.preprocess.deskew && dt > 1e-6;
-  if (T_odom) {
-    if (timed) {
-      deskew(*cloud, se3_log(odometry_poses_[n - 1].inverse() * *T_odom) / dt);
-      f.deskewed = true;
-    }
-    odometry_.set_pose(*T_odom, stamp);
-    reference_ = {*T_odom, stamp};
-    return *T_odom;
-  }
-  if (!timed || !odometry_.has_model() || cloud->size() < 100 || !cloud->has_covs()) {
-    const Eigen::Isometry3d T = odometry_.track(cloud, stamp);
-    f.odometry_failed = odometry_.last_failed();
-    reference_ = {T, stamp};
-    return T;
-  }
-  return track_deskewed(cloud, stamp, dt, f);
-}
-
-Eigen::Isometry3d MappingPipeline::track_deskewed(const std::shared_ptr<PointCloud>& cloud, double stamp, double dt,
-                                                  Frame& f) {
-  // A deskewed sweep registers best at the mean time of its points: an error of the assumed motion
-  // moves earlier and later points in opposite directions. The motion between these instants of
-  // the previous and this sweep (centred on the sweep start) stands for the motion within the sweep;
-  // the motion between the scan stamps lags it by a whole sweep period, twice as much. First the
-  // prediction, then that registered motion, refined once more.
-  const PointCloud raw = *cloud;
-  double t_mean = 0.0;
-  for (const float t : raw.times) t_mean += t;
-  t_mean /= static_cast<double>(raw.size());
-  const double span = stamp + t_mean - reference_.stamp;
-  Eigen::Isometry3d T = odometry_.predict(stamp);
-  const Odometry::Guess kind = odometry_.guess_kind(stamp);
-  Vector6d velocity = se3_log(odometry_poses_.back().inverse() * T) / dt;
-  for (int pass = 0; pass < 3; ++pass) {
-    *cloud = raw;
-    deskew(*cloud, velocity);
-    const Eigen::Isometry3d T_world_stamp =
-        odometry_.estimate(*cloud, T, pass == 0 ? kind : Odometry::Guess::steady, &f.odometry_failed);
-    if (pass == 0 && kind == Odometry::Guess::rest) {
-      // Registered undeskewed: only a first velocity, between the stamps.
-      velocity = se3_log(odometry_poses_.back().inverse() * T_world_stamp) / dt;
-      T = T_world_stamp;
-      continue;
-    }
-    const Eigen::Isometry3d T_world_mean = T_world_stamp * se3_exp(t_mean * velocity);
-    if (span > 1e-6) velocity = se3_log(reference_.pose.inverse() * T_world_mean) / span;
-    T = T_world_mean * se3_exp(-t_mean * velocity);
-  }
-  *cloud = raw;
-  deskew(*cloud, velocity);
-  odometry_.accept(cloud, T, stamp, f.odometry_failed);
-  f.deskewed = true;
-  reference_ = {T * se3_exp(t_mean * velocity), stamp + t_mean};
-  return T;
-}
-
 Frame MappingPipeline::add_prepared(PreparedScan scan, std::optional<Eigen::Isometry3d> T_odom) {
   if (finished_) throw Error("add_scan: the pipeline is finished");
   if (!stamps_.empty() && scan.stamp < stamps_.back())
@@ -177,7 +115,10 @@ Frame MappingPipeline::add_prepared(PreparedScan scan, std::optional<Eigen::Isom
   }
   preprocess_ms_.add(scan.preprocess_ms);
   Stopwatch w;
-  f.T_odom = track(scan.cloud, scan.stamp, T_odom, f);
+  const SweepEstimate e = odometry_.track(scan.cloud, scan.stamp, T_odom);
+  f.T_odom = e.T_world_frame;
+  f.deskewed = e.deskewed;
+  f.odometry_failed = e.failed;
   if (f.odometry_failed) {
     spdlog::warn("scan {}: odometry failed (too few matches, or far from the prediction with little overlap), "
                  "placed by the prediction",

@@ -10,7 +10,7 @@
 #include "gcmap/core/scan_source.hpp"
 #include "gcmap/mapping/elevation_calibration.hpp"
 #include "gcmap/mapping/mapper.hpp"
-#include "gcmap/mapping/odometry.hpp"
+#include "gcmap/mapping/sweep_odometry.hpp"
 
 namespace gcmap {
 
@@ -108,25 +108,14 @@ class MappingPipeline {
   PointCloud map(double resolution) const { return mapper_.assemble_map(resolution); }
 
  private:
-  Eigen::Isometry3d track(const std::shared_ptr<PointCloud>& cloud, double stamp,
-                          const std::optional<Eigen::Isometry3d>& T_odom, Frame& f);
-  Eigen::Isometry3d track_deskewed(const std::shared_ptr<PointCloud>& cloud, double stamp, double dt, Frame& f);
-
   MappingConfig config_;
   std::shared_ptr<LinearizationBackend> backend_;
   PipelineOptions options_;
-  Odometry odometry_;
+  SweepOdometry odometry_;
   Mapper mapper_;
   std::vector<double> stamps_;
   std::vector<FrameStatus> statuses_;
   std::vector<Eigen::Isometry3d> odometry_poses_;
-  // The last frame's pose at the instant its registration fixes best (see track_deskewed): the
-  // mean point time of a deskewed sweep, else the scan stamp.
-  struct SweepReference {
-    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-    double stamp = 0.0;
-  };
-  SweepReference reference_;
   size_t unusable_ = 0, odometry_failures_ = 0;
   TimingStats preprocess_ms_, odometry_ms_;
   Stopwatch clock_;

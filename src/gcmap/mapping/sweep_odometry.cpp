@@ -1,0 +1,74 @@
+#include "gcmap/mapping/sweep_odometry.hpp"
+
+#include "gcmap/core/deskew.hpp"
+#include "gcmap/core/se3.hpp"
+
+namespace gcmap {
+
+SweepOdometry::SweepOdometry(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend)
+    : deskew_(config.preprocess.deskew), odometry_(config.odometry, std::move(backend)) {}
+
+SweepEstimate SweepOdometry::track(const std::shared_ptr<PointCloud>& cloud, double stamp,
+                                   const std::optional<Eigen::Isometry3d>& T_odom) {
+  const double dt = last_ ? stamp - last_->second : 0.0;
+  const bool timed = cloud && cloud->has_times() && deskew_ && dt > 1e-6;
+  SweepEstimate e;
+  if (T_odom) {
+    if (timed) {
+      deskew(*cloud, se3_log(last_->first.inverse() * *T_odom) / dt);
+      e.deskewed = true;
+    }
+    odometry_.set_pose(*T_odom, stamp);
+    reference_ = {*T_odom, stamp};
+    e.T_world_frame = *T_odom;
+  } else if (!timed || !odometry_.has_model() || cloud->size() < 100 || !cloud->has_covs()) {
+    e.T_world_frame = odometry_.track(cloud, stamp);
+    e.failed = odometry_.last_failed();
+    reference_ = {e.T_world_frame, stamp};
+  } else {
+    e = track_deskewed(cloud, stamp, dt);
+  }
+  last_.emplace(e.T_world_frame, stamp);
+  return e;
+}
+
+SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& cloud, double stamp, double dt) {
+  // A deskewed sweep registers best at the mean time of its points: an error of the assumed motion
+  // moves earlier and later points in opposite directions. The motion between these instants of
+  // the previous and this sweep (centred on the sweep start) stands for the motion within the sweep;
+  // the motion between the scan stamps lags it by a whole sweep period, twice as much. First the
+  // prediction, then that registered motion, refined once more.
+  const PointCloud raw = *cloud;
+  double t_mean = 0.0;
+  for (const float t : raw.times) t_mean += t;
+  t_mean /= static_cast<double>(raw.size());
+  const double span = stamp + t_mean - reference_.stamp;
+  SweepEstimate e;
+  Eigen::Isometry3d T = odometry_.predict(stamp);
+  const Odometry::Guess kind = odometry_.guess_kind(stamp);
+  Vector6d velocity = se3_log(last_->first.inverse() * T) / dt;
+  for (int pass = 0; pass < 3; ++pass) {
+    *cloud = raw;
+    deskew(*cloud, velocity);
+    const Eigen::Isometry3d T_world_stamp =
+        odometry_.estimate(*cloud, T, pass == 0 ? kind : Odometry::Guess::steady, &e.failed);
+    if (pass == 0 && kind == Odometry::Guess::rest) {
+      // Registered undeskewed: only a first velocity, between the stamps.
+      velocity = se3_log(last_->first.inverse() * T_world_stamp) / dt;
+      T = T_world_stamp;
+      continue;
+    }
+    const Eigen::Isometry3d T_world_mean = T_world_stamp * se3_exp(t_mean * velocity);
+    if (span > 1e-6) velocity = se3_log(reference_.pose.inverse() * T_world_mean) / span;
+    T = T_world_mean * se3_exp(-t_mean * velocity);
+  }
+  *cloud = raw;
+  deskew(*cloud, velocity);
+  odometry_.accept(cloud, T, stamp, e.failed);
+  reference_ = {T * se3_exp(t_mean * velocity), stamp + t_mean};
+  e.T_world_frame = T;
+  e.deskewed = true;
+  return e;
+}
+
+}  // namespace gcmap
