@@ -62,6 +62,11 @@ void Drive::speed_profile(const Scenario& s, const std::vector<size_t>& corner_s
 double Drive::arclength(double frame) const {
   if (even_) return length_ * frame / (num_frames_ - 1);
   const double t = frame * kFramePeriod;
+  if (t > knot_t_.back() && knot_t_.size() > 1) {  // at the speed of the last interval
+    const size_t j = knot_t_.size() - 1;
+    const double dt = knot_t_[j] - knot_t_[j - 1];
+    return knot_s_[j] + (dt > 0 ? (t - knot_t_[j]) * (knot_s_[j] - knot_s_[j - 1]) / dt : 0.0);
+  }
   const size_t j = std::clamp<size_t>(std::upper_bound(knot_t_.begin(), knot_t_.end(), t) - knot_t_.begin(), 1,
                                       knot_t_.size() - 1);
   const double dt = knot_t_[j] - knot_t_[j - 1];
@@ -72,7 +77,9 @@ double Drive::arclength(double frame) const {
 Eigen::Isometry3d Drive::pose(double frame) const {
   const double s = arclength(frame);
   const size_t seg = std::min<size_t>(std::lower_bound(arc_.begin() + 1, arc_.end(), s) - arc_.begin(), lane_.size() - 1) - 1;
-  const double f = std::clamp((s - arc_[seg]) / std::max(arc_[seg + 1] - arc_[seg], 1e-9), 0.0, 1.0);
+  // Beyond the route's end (the last sweep's later firings) the vehicle goes on straight: clamped,
+  // it would stop dead within that sweep.
+  const double f = std::max((s - arc_[seg]) / std::max(arc_[seg + 1] - arc_[seg], 1e-9), 0.0);
   const Eigen::Vector2f p = lane_[seg] + static_cast<float>(f) * (lane_[seg + 1] - lane_[seg]);
   // Heading from a short look-ahead/behind chord smooths the polyline's kinks; interpolated
   // between the chords of neighbouring vertices so that it turns continuously, not in steps.
