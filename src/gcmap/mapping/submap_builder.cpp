@@ -26,6 +26,25 @@ PointCloud evenly_subsampled(PointCloud cloud, int n) {
 SubmapBuilder::SubmapBuilder(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend)
     : config_(config), backend_(std::move(backend)) {}
 
+SubmapBuilder::Keyframe SubmapBuilder::make_keyframe(int frame, const Eigen::Isometry3d& T_odom,
+                                                     const std::shared_ptr<const PointCloud>& cloud) const {
+  auto voxels = std::make_shared<GaussianVoxelMap>(config_.local.voxel_resolution);
+  voxels->insert(*cloud);
+  voxels->finalize();
+  ScanContext descriptor;
+  if (config_.loop.enabled) descriptor = make_scan_context(*cloud, config_.loop.scan_context);
+  return {frame, T_odom, cloud, std::move(voxels), std::move(descriptor)};
+}
+
+bool SubmapBuilder::replace_cloud(int frame, const std::shared_ptr<const PointCloud>& cloud) {
+  for (Keyframe& k : open_)
+    if (k.frame == frame && cloud && cloud->size() >= 100) {
+      k = make_keyframe(frame, k.T_odom, cloud);
+      return true;
+    }
+  return false;
+}
+
 SubmapBuilder::Result SubmapBuilder::add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud,
                                                const Eigen::Isometry3d& T_odom) {
   Result r;
@@ -42,12 +61,7 @@ SubmapBuilder::Result SubmapBuilder::add_frame(int frame, const std::shared_ptr<
     // rather than joining a local graph it has no factor into.
     if (ov < config_.local.th_min) r.closed = close();
   }
-  auto voxels = std::make_shared<GaussianVoxelMap>(config_.local.voxel_resolution);
-  voxels->insert(*cloud);
-  voxels->finalize();
-  ScanContext descriptor;
-  if (config_.loop.enabled) descriptor = make_scan_context(*cloud, config_.loop.scan_context);
-  open_.push_back({frame, T_odom, cloud, voxels, std::move(descriptor)});
+  open_.push_back(make_keyframe(frame, T_odom, cloud));
   r.status = FrameStatus::keyframe;
   r.anchor = last_keyframe_ = frame;
   if (open_.size() >= 2) {

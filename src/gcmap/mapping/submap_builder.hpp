@@ -33,6 +33,9 @@ class SubmapBuilder {
   Result add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom);
   // Closes the open submap, if any.
   std::optional<Submap> close();
+  // Replaces the cloud of a keyframe of the open submap (e.g. deskewed once the motion is known);
+  // false when the frame is no open keyframe.
+  bool replace_cloud(int frame, const std::shared_ptr<const PointCloud>& cloud);
 
   bool has_open_keyframes() const { return !open_.empty(); }
   const LocalMappingStats& stats() const { return stats_; }
@@ -45,6 +48,7 @@ class SubmapBuilder {
     std::shared_ptr<GaussianVoxelMap> voxels;  // local resolution, keyframe frame
     ScanContext descriptor;                    // when explicit loops are on
   };
+  Keyframe make_keyframe(int frame, const Eigen::Isometry3d& T_odom, const std::shared_ptr<const PointCloud>& cloud) const;
   // Keyframe poses in the submap frame, optimized with every keyframe pair as a factor.
   std::vector<Eigen::Isometry3d> optimize_keyframes(const Eigen::Isometry3d& T_odom_submap);
   Submap merge(Submap s) const;

@@ -5,8 +5,21 @@
 
 namespace gcmap {
 
+namespace {
+
+double mean_time(const PointCloud& cloud) {
+  double sum = 0.0;
+  for (const float t : cloud.times) sum += t;
+  return sum / static_cast<double>(cloud.size());
+}
+
+}  // namespace
+
 SweepOdometry::SweepOdometry(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend)
-    : deskew_(config.preprocess.deskew), odometry_(config.odometry, std::move(backend)) {}
+    : config_(config.odometry),
+      backend_(std::move(backend)),
+      deskew_(config.preprocess.deskew),
+      odometry_(config_, backend_) {}
 
 SweepEstimate SweepOdometry::track(const std::shared_ptr<PointCloud>& cloud, double stamp,
                                    const std::optional<Eigen::Isometry3d>& T_odom) {
@@ -22,14 +35,30 @@ SweepEstimate SweepOdometry::track(const std::shared_ptr<PointCloud>& cloud, dou
     reference_ = {*T_odom, stamp};
     e.T_world_frame = *T_odom;
   } else if (!timed || !odometry_.has_model() || cloud->size() < 100 || !cloud->has_covs()) {
+    const bool starts_model = !odometry_.has_model();
     e.T_world_frame = odometry_.track(cloud, stamp);
     e.failed = odometry_.last_failed();
     reference_ = {e.T_world_frame, stamp};
+    if (starts_model && odometry_.has_model() && deskew_ && cloud->has_times())
+      first_ = FirstSweep{*cloud, stamp, e.T_world_frame, frames_};
   } else {
     e = track_deskewed(cloud, stamp, dt);
   }
+  if (first_ && frames_ > first_->frame) first_.reset();  // only the next frame restarts
   last_.emplace(e.T_world_frame, stamp);
+  ++frames_;
   return e;
+}
+
+std::shared_ptr<const PointCloud> SweepOdometry::restart_from_first(double dt, const Vector6d& velocity) {
+  if (dt > config_.max_gap) return nullptr;  // the motion then says little about the first sweep
+  auto first = std::make_shared<PointCloud>(std::move(first_->raw));
+  deskew(*first, velocity);
+  odometry_ = Odometry(config_, backend_);
+  odometry_.accept(first, first_->T, first_->stamp);
+  const double t_mean = mean_time(*first);
+  reference_ = {first_->T * se3_exp(t_mean * velocity), first_->stamp + t_mean};
+  return first;
 }
 
 SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& cloud, double stamp, double dt) {
@@ -39,10 +68,7 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
   // the motion between the scan stamps lags it by a whole sweep period, twice as much. First the
   // prediction, then that registered motion, refined once more.
   const PointCloud raw = *cloud;
-  double t_mean = 0.0;
-  for (const float t : raw.times) t_mean += t;
-  t_mean /= static_cast<double>(raw.size());
-  const double span = stamp + t_mean - reference_.stamp;
+  const double t_mean = mean_time(raw);
   SweepEstimate e;
   Eigen::Isometry3d T = odometry_.predict(stamp);
   const Odometry::Guess kind = odometry_.guess_kind(stamp);
@@ -56,9 +82,11 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
       // Registered undeskewed: only a first velocity, between the stamps.
       velocity = se3_log(last_->first.inverse() * T_world_stamp) / dt;
       T = T_world_stamp;
+      if (first_ && (e.first_deskewed = restart_from_first(dt, velocity))) e.first_frame = first_->frame;
       continue;
     }
     const Eigen::Isometry3d T_world_mean = T_world_stamp * se3_exp(t_mean * velocity);
+    const double span = stamp + t_mean - reference_.stamp;
     if (span > 1e-6) velocity = se3_log(reference_.pose.inverse() * T_world_mean) / span;
     T = T_world_mean * se3_exp(-t_mean * velocity);
   }

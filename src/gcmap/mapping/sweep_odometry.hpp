@@ -13,6 +13,10 @@ struct SweepEstimate {
   Eigen::Isometry3d T_world_frame = Eigen::Isometry3d::Identity();  // at the scan stamp
   bool deskewed = false;
   bool failed = false;  // registration rejected (see Odometry::estimate): placed by the prediction
+  // Once, at the second frame: the first sweep, deskewed now that the motion is known (it entered
+  // the odometry's model smeared). The mapper should take it instead (Mapper::replace_frame_cloud).
+  std::shared_ptr<const PointCloud> first_deskewed;
+  int first_frame = -1;  // its index among the frames tracked
 };
 
 class SweepOdometry {
@@ -28,8 +32,22 @@ class SweepOdometry {
  private:
   SweepEstimate track_deskewed(const std::shared_ptr<PointCloud>& cloud, double stamp, double dt);
 
+  // The first sweep entered the model as it came; with the first motion registered (smeared
+  // against smeared, which cancels), it is deskewed and the model started again from it.
+  std::shared_ptr<const PointCloud> restart_from_first(double dt, const Vector6d& velocity);
+
+  OdometryConfig config_;
+  std::shared_ptr<LinearizationBackend> backend_;
   bool deskew_;
   Odometry odometry_;
+  int frames_ = 0;
+  struct FirstSweep {
+    PointCloud raw;
+    double stamp = 0.0;
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    int frame = 0;
+  };
+  std::optional<FirstSweep> first_;  // until the second frame is registered
   // The previous frame's pose and stamp.
   std::optional<std::pair<Eigen::Isometry3d, double>> last_;
   // The last frame's pose at the instant its registration fixes best (see track_deskewed): the
