@@ -7,6 +7,7 @@
 #include <optional>
 
 #include "gcmap/core/error.hpp"
+#include "gcmap/eval/map_entropy.hpp"
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/session.hpp"
 #include "gcmap/io/trajectory_io.hpp"
@@ -90,6 +91,39 @@ TEST_F(MergeOfSmallRoutes, TwoRoutesAreJoinedAtTheirTrueRelativePose) {
   }
   ASSERT_EQ(r.T_merged_submap.size(), drive(0).session.submaps.size() + drive(1).session.submaps.size());
   EXPECT_EQ(r.first_submap[1], static_cast<int>(drive(0).session.submaps.size()));
+}
+
+// Mean map entropy of two sessions' submap clouds, B's submaps placed by T_A_B.
+double entropy_of_both(const Session& a, const Session& b, const std::vector<Eigen::Isometry3d>& T_a_submap,
+                       const std::vector<Eigen::Isometry3d>& T_a_submap_b) {
+  PointCloud map;
+  const auto add = [&](const Submap& s, const Eigen::Isometry3d& T) {
+    for (const Eigen::Vector3f& p : s.cloud->points) map.points.push_back((T * p.cast<double>()).cast<float>());
+  };
+  for (size_t j = 0; j < a.submaps.size(); ++j) add(a.submaps[j], T_a_submap[j]);
+  for (size_t j = 0; j < b.submaps.size(); ++j) add(b.submaps[j], T_a_submap_b[j]);
+  return mean_map_entropy(map).mean;
+}
+
+TEST_F(MergeOfSmallRoutes, TheMergedMapIsSharperThanTheBestSingleAlignment) {
+  // Before the joint optimization B is placed by its one verified place: the best single
+  // alignment of a B submap on an A submap. The joint graph must leave the overlap sharper.
+  const Session& a = drive(0).session;
+  const Session& b = drive(1).session;
+  const MergeResult r = merge_sessions({input(drive(0), "A"), input(drive(1), "B")}, MappingConfig{});
+  ASSERT_TRUE(r.connected[1]);
+  const SessionPlacement& p = r.placements[1];
+  ASSERT_TRUE(p.accepted);
+  const Eigen::Isometry3d T_a_b = a.T_world_submap[p.target] * p.T_target_source * b.T_world_submap[p.source].inverse();
+  std::vector<Eigen::Isometry3d> placed;
+  for (const Eigen::Isometry3d& T : b.T_world_submap) placed.push_back(T_a_b * T);
+  const double single = entropy_of_both(a, b, a.T_world_submap, placed);
+  const std::vector<Eigen::Isometry3d> merged_a(r.T_merged_submap.begin(), r.T_merged_submap.begin() + r.first_submap[1]);
+  const std::vector<Eigen::Isometry3d> merged_b(r.T_merged_submap.begin() + r.first_submap[1], r.T_merged_submap.end());
+  const double merged = entropy_of_both(a, b, merged_a, merged_b);
+  const double own_a = entropy_of_both(a, Session{}, a.T_world_submap, {});
+  std::printf("[ merge    ] mean map entropy: A alone %.4f, A and B by the best single alignment %.4f, merged %.4f\n", own_a, single, merged);
+  EXPECT_LT(merged, single);
 }
 
 TEST_F(MergeOfSmallRoutes, ThreeSessionsInOneCallAndAnotherWorldLeftUnconnected) {
