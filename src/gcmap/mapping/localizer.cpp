@@ -129,22 +129,33 @@ LocalizedFrame Localizer::add_scan(PointCloud scan, double stamp) {
   LocalizedFrame f;
   f.index = static_cast<int>(frames_.size());
   f.stamp = stamp;
+  if (!frames_.empty() && stamp - frames_.back().stamp > config_.odometry.max_gap) {
+    // Across a gap dead reckoning would place the frame anywhere, and the map may well hold it
+    // there too (streets repeat); the odometry's model lies behind. Both start again: the next
+    // pose comes from the map's places.
+    odometry_ = SweepOdometry(config_, backend_);
+    initial_.reset();
+    localized_once_ = false;
+    lost_since_ = 0;
+  }
   // Deskewed in place by the odometry: registered on the map, it gives the pose at the stamp.
   const std::shared_ptr<PointCloud> cloud = prepare_scan(std::move(scan), stamp, config_, options_).cloud;
   const SweepEstimate sweep = odometry_.track(cloud, stamp);
   odometry_poses_.push_back(sweep.T_world_frame);
   f.deskewed = sweep.deskewed;
   const bool usable = cloud && cloud->size() >= 100;
+  // The odometry's first sweep, not deskewed (no motion known yet): global initialization waits a frame.
+  const bool smeared = usable && cloud->has_times() && config_.preprocess.deskew && !sweep.deskewed;
   const LocalizedFrame* last = frames_.empty() ? nullptr : &frames_.back();
   // Dead reckoning by odometry from the last pose, also while lost: the map may take the frame back.
   std::optional<Eigen::Isometry3d> guess = initial_;
   if (last && (initial_ || localized_once_))
     guess = last->T_map_frame * (odometry_poses_[odometry_poses_.size() - 2].inverse() * odometry_poses_.back());
   f.T_map_frame = guess.value_or(Eigen::Isometry3d::Identity());
-  const bool held = last && last->status != LocalizationStatus::lost;
+  const bool held = last && last->status != LocalizationStatus::lost && (initial_ || localized_once_);
   if (usable && guess && track(cloud, *guess, held ? std::optional(last->T_map_frame) : std::nullopt, f)) {
     f.status = LocalizationStatus::tracking;
-  } else if (usable && lost_since_++ % config_.localize.relocalize_every == 0) {
+  } else if (usable && !smeared && lost_since_++ % config_.localize.relocalize_every == 0) {
     if (const auto T = global_initialization(*cloud); T && track(cloud, *T, std::nullopt, f)) f.status = LocalizationStatus::relocalized;
   }
   if (f.status != LocalizationStatus::lost) {

@@ -24,7 +24,8 @@ SweepOdometry::SweepOdometry(const MappingConfig& config, std::shared_ptr<Linear
 SweepEstimate SweepOdometry::track(const std::shared_ptr<PointCloud>& cloud, double stamp,
                                    const std::optional<Eigen::Isometry3d>& T_odom) {
   const double dt = last_ ? stamp - last_->second : 0.0;
-  const bool timed = cloud && cloud->has_times() && deskew_ && dt > 1e-6;
+  // After a gap of over odometry.max_gap the motion is unknown, as for the first frame.
+  const bool timed = cloud && cloud->has_times() && deskew_ && dt > 1e-6 && dt <= config_.max_gap;
   SweepEstimate e;
   if (T_odom) {
     if (timed) {

@@ -25,7 +25,8 @@ class SweepOdometry {
 
   // The pose of a prepared scan (null: unusable, placed by the prediction) at `stamp`, stamps
   // non-decreasing. A scan with per-point times is deskewed in place into the sensor frame at the
-  // stamp. T_odom: an external pose taken instead of registration (it still drives deskewing).
+  // stamp, unless no motion is known (the first frame, after a gap of odometry.max_gap). T_odom: an
+  // external pose taken instead of registration (it still drives deskewing).
   SweepEstimate track(const std::shared_ptr<PointCloud>& cloud, double stamp,
                       const std::optional<Eigen::Isometry3d>& T_odom = std::nullopt);
 
