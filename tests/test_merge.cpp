@@ -4,10 +4,12 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <optional>
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/eval/map_entropy.hpp"
+#include "gcmap/eval/trajectory_metrics.hpp"
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/session.hpp"
 #include "gcmap/io/trajectory_io.hpp"
@@ -23,12 +25,14 @@ struct MappedDrive {
   std::vector<Eigen::Isometry3d> poses_world;  // ground truth in the world all routes share
 };
 
-// The first frames of a route of the small block, mapped by the pipeline.
-MappedDrive map_route(int route, uint64_t seed, size_t frames) {
+// The first frames of a route of the small block, mapped by the pipeline; realistic: every
+// realism on (motion distortion, traffic, beam calibration errors, dropouts, ...).
+MappedDrive map_route(int route, uint64_t seed, size_t frames, bool realistic = false) {
   sim::SimulationConfig sc;
   sc.scenario = "small";
   sc.route = route;
   sc.seed = seed;
+  if (realistic) sc.realism = sim::RealismConfig::all();
   const sim::Simulator sim(sc);
   MappingPipeline p{MappingConfig{}};
   std::vector<double> stamps;
@@ -156,6 +160,34 @@ TEST_F(MergeOfSmallRoutes, MisuseIsAnErrorNamingTheSession) {
   MappingConfig bad;
   bad.merge.max_verifications = 0;
   EXPECT_THROW(merge_sessions({input(drive(0), "A"), input(drive(1), "B")}, bad), Error);
+}
+
+TEST(RealisticMerge, RoutesOfOneWorldJoinWhereTheyOverlapAndAnotherWorldStaysApart) {
+  // Route 1 starts 20 m into route 0; seed 2 builds other houses along the same streets.
+  const MappedDrive a = map_route(0, 1, 80, true), b = map_route(1, 1, 60, true), other = map_route(0, 2, 40, true);
+  const MergeResult r = merge_sessions({input(a, "A"), input(other, "other"), input(b, "B")}, MappingConfig{});
+  ASSERT_TRUE(r.connected[0] && r.connected[2]);
+  EXPECT_FALSE(r.connected[1]);
+  // Each session's frame is its own estimate of its first pose (off by tenths of a degree on these
+  // scans): B is judged in A's frame as fitted on A's merged trajectory, where the routes overlap.
+  Poses truth_a, truth_b;
+  for (size_t f = 0; f < 80; ++f) truth_a.push_back(a.poses_world[0].inverse() * a.poses_world[f]);
+  const Eigen::Isometry3d T_truth_merged = absolute_trajectory_error(truth_a, r.trajectories[0]).T_gt_est;
+  double sum = 0.0, worst = 0.0;
+  int overlap = 0;
+  for (size_t f = 0; f < 60; ++f) {
+    const Eigen::Isometry3d truth = a.poses_world[0].inverse() * b.poses_world[f];
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const Eigen::Isometry3d& t : truth_a) nearest = std::min(nearest, (t.translation() - truth.translation()).norm());
+    if (nearest > 5.0) continue;
+    const double e = test::translation_error(T_truth_merged * r.trajectories[2][f], truth);
+    sum += e, worst = std::max(worst, e), ++overlap;
+  }
+  std::printf("[ merge    ] realistic route 1 on route 0 where they overlap (%d frames): mean %.4f m, max %.4f m\n", overlap,
+              sum / overlap, worst);
+  EXPECT_GT(overlap, 30);
+  EXPECT_LT(sum / overlap, 0.05);
+  EXPECT_LT(worst, 0.15);
 }
 
 struct CliResult {

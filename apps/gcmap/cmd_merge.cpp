@@ -83,6 +83,7 @@ Json merge_report(const MergeOptions& o, const MergeResult& r) {
     x["descriptor_distance"] = c.descriptor_distance;
     x["inlier_fraction"] = c.inlier_fraction;
     x["inlier_rmse"] = c.inlier_rmse;
+    x["allowed_rmse"] = c.allowed_rmse;
     x["accepted"] = c.accepted;
     checks.push_back(x);
   }

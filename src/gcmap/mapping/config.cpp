@@ -110,6 +110,8 @@ void visit(Config& c, Visitor&& v) {
   v("localize", "relocalize_every", c.localize.relocalize_every);
   v("merge", "max_descriptor_distance", c.merge.max_descriptor_distance);
   v("merge", "max_verifications", c.merge.max_verifications);
+  v("merge", "min_inlier_fraction", c.merge.min_inlier_fraction);
+  v("merge", "max_rmse_ratio", c.merge.max_rmse_ratio);
   v("merge", "max_iterations", c.merge.max_iterations);
   v("output", "map_resolution", c.output.map_resolution);
   v("output", "pcd", c.output.pcd);
@@ -274,6 +276,8 @@ void MappingConfig::validate() const {
   need(localize.relocalize_every >= 1, "localize.relocalize_every must be >= 1");
   need(merge.max_descriptor_distance > 0 && merge.max_descriptor_distance <= 1, "merge.max_descriptor_distance must be in (0, 1]");
   need(merge.max_verifications >= 1 && merge.max_iterations >= 1, "merge.max_verifications and merge.max_iterations must be >= 1");
+  need(merge.min_inlier_fraction > 0 && merge.min_inlier_fraction <= 1, "merge.min_inlier_fraction must be in (0, 1]");
+  need(merge.max_rmse_ratio > 0, "merge.max_rmse_ratio must be positive");
   need(output.map_resolution > 0, "output.map_resolution must be positive");
 }
 

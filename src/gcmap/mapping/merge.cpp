@@ -1,6 +1,8 @@
 #include "gcmap/mapping/merge.hpp"
 
 #include <algorithm>
+#include <limits>
+#include <map>
 #include <optional>
 #include <set>
 #include <tuple>
@@ -25,13 +27,37 @@ struct Candidate {
   int submap, keyframe, place;  // query keyframe (of the session to place) and the place it matched
 };
 
+// The point-to-plane RMSE at which submap j of session s verifies against its neighbour at their
+// optimized poses: the noise the session itself shows (0 for a session of one submap). Memoized:
+// sessions are tried against each other repeatedly.
+class OwnRmse {
+ public:
+  OwnRmse(const std::vector<MergeInput>& in, const LoopConfig& config) : in_(in), config_(config) {}
+  double operator()(int s, int j) {
+    const auto [it, added] = known_.try_emplace({s, j}, 0.0);
+    const std::vector<Submap>& submaps = in_[s].submaps;
+    const int n = static_cast<int>(submaps.size());
+    if (added && n >= 2) {
+      const int k = j + 1 < n ? j + 1 : j - 1;
+      const Eigen::Isometry3d T_j_k = in_[s].T_world_submap[j].inverse() * in_[s].T_world_submap[k];
+      it->second = verify_loop(*submaps[k].cloud, *submaps[j].cloud, T_j_k, config_).inlier_rmse;
+    }
+    return it->second;
+  }
+
+ private:
+  const std::vector<MergeInput>& in_;
+  const LoopConfig& config_;
+  std::map<std::pair<int, int>, double> known_;
+};
+
 // Where session b lies in the reference frame, from the best verified ScanContext match of its
 // keyframes with the places of the sessions placed so far.
 std::optional<std::pair<SessionPlacement, Eigen::Isometry3d>> find_placement(const std::vector<MergeInput>& in,
                                                                               const std::vector<Eigen::Isometry3d>& T_ref_session,
                                                                               const std::vector<bool>& connected, int b,
                                                                               const MappingConfig& config,
-                                                                              std::vector<SessionPlacement>& checks) {
+                                                                              OwnRmse& own_rmse, std::vector<SessionPlacement>& checks) {
   ScanContextDatabase places;
   std::vector<Place> where;
   for (size_t a = 0; a < in.size(); ++a) {
@@ -58,6 +84,9 @@ std::optional<std::pair<SessionPlacement, Eigen::Isometry3d>> find_placement(con
                           results[q].place});
   }
   std::stable_sort(candidates.begin(), candidates.end(), [](const Candidate& x, const Candidate& y) { return x.distance < y.distance; });
+  LoopConfig verification = config.loop;
+  verification.min_inlier_fraction = config.merge.min_inlier_fraction;
+  verification.max_inlier_rmse = std::numeric_limits<double>::infinity();  // decided below
   // Neighbouring keyframes propose the same submap pair again: each pair is verified once.
   std::set<std::tuple<int, int, int>> tried;
   for (const Candidate& c : candidates) {
@@ -67,9 +96,13 @@ std::optional<std::pair<SessionPlacement, Eigen::Isometry3d>> find_placement(con
     const Submap& source = in[b].submaps[c.submap];
     const Submap& target = in[p.session].submaps[p.submap];
     const LoopVerification v =
-        verify_loop(*source.cloud, *target.cloud, place_match_guess(source, c.keyframe, target, p.keyframe, c.yaw), config.loop);
-    checks.push_back({b, p.session, c.submap, p.submap, v.accepted, c.distance, v.inlier_fraction, v.inlier_rmse, v.T_target_source});
-    if (!v.accepted) continue;
+        verify_loop(*source.cloud, *target.cloud, place_match_guess(source, c.keyframe, target, p.keyframe, c.yaw), verification);
+    const double allowed_rmse =
+        std::max(config.loop.max_inlier_rmse, config.merge.max_rmse_ratio * std::max(own_rmse(b, c.submap), own_rmse(p.session, p.submap)));
+    const bool accepted = v.accepted && v.inlier_rmse <= allowed_rmse;
+    checks.push_back({b, p.session, c.submap, p.submap, accepted, c.distance, v.inlier_fraction, v.inlier_rmse, allowed_rmse,
+                      v.T_target_source});
+    if (!accepted) continue;
     const Eigen::Isometry3d T_ref_b = T_ref_session[p.session] * in[p.session].T_world_submap[p.submap] * v.T_target_source *
                                       in[b].T_world_submap[c.submap].inverse();
     return std::pair{checks.back(), T_ref_b};
@@ -84,11 +117,12 @@ std::vector<Eigen::Isometry3d> place_sessions(const std::vector<MergeInput>& in,
   r.connected.assign(in.size(), false);
   r.placements.assign(in.size(), {});
   r.connected[0] = true;
+  OwnRmse own_rmse(in, config.loop);
   for (bool progress = true; progress;) {
     progress = false;
     for (size_t b = 1; b < in.size(); ++b) {
       if (r.connected[b]) continue;
-      if (auto found = find_placement(in, T_ref_session, r.connected, static_cast<int>(b), config, r.checks)) {
+      if (auto found = find_placement(in, T_ref_session, r.connected, static_cast<int>(b), config, own_rmse, r.checks)) {
         r.placements[b] = found->first;
         T_ref_session[b] = found->second;
         r.connected[b] = true;

@@ -30,6 +30,7 @@ struct SessionPlacement {
   int session = -1, anchor = -1, source = -1, target = -1;
   bool accepted = false;
   double descriptor_distance = 0.0, inlier_fraction = 0.0, inlier_rmse = 0.0;
+  double allowed_rmse = 0.0;  // the bound it was held to (see MergeConfig::max_rmse_ratio)
   Eigen::Isometry3d T_target_source = Eigen::Isometry3d::Identity();  // verified by GICP
 };
 
