@@ -93,6 +93,24 @@ TEST_F(PriorMapOfSmallBlock, SweepsDistortedByMotionAreDeskewedBeforeTheMap) {
   EXPECT_LT(worst[1], 0.15);  // a corner: the yaw rate changes within the sweep
 }
 
+TEST_F(PriorMapOfSmallBlock, OnlyTheSubmapsOverlappingMostAreMatched) {
+  int most[2] = {0, 0};
+  for (int cap : {8, 2}) {
+    MappingConfig config;
+    config.localize.max_submaps = cap;
+    Localizer loc(*prior, config);
+    loc.set_initial_pose(truth(20));
+    for (size_t f = 20; f < 30; ++f) {
+      const LocalizedFrame lf = loc.add_scan(drive->scan(f), 0.1 * f);
+      ASSERT_NE(lf.status, LocalizationStatus::lost) << "frame " << f;
+      EXPECT_LT(test::translation_error(lf.T_map_frame, truth(f)), 0.02) << "frame " << f << ", at most " << cap;
+      most[cap == 2] = std::max(most[cap == 2], lf.prior_submaps);
+    }
+  }
+  EXPECT_GT(most[0], 2);
+  EXPECT_EQ(most[1], 2);
+}
+
 TEST_F(PriorMapOfSmallBlock, AChangedWorldIsReportedNeverMistaken) {
   // Seed 2 builds other houses along the same streets: from a known pose tracking goes on and
   // reports the points the map does not explain; without one, nothing is confidently wrong.

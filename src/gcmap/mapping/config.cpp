@@ -105,6 +105,7 @@ void visit(Config& c, Visitor&& v) {
   v("loop", "tukey_offset", c.loop.tukey_offset);
   v("localize", "min_overlap", c.localize.min_overlap);
   v("localize", "submap_radius", c.localize.submap_radius);
+  v("localize", "max_submaps", c.localize.max_submaps);
   v("localize", "min_inlier_fraction", c.localize.min_inlier_fraction);
   v("localize", "max_inlier_rmse", c.localize.max_inlier_rmse);
   v("localize", "relocalize_every", c.localize.relocalize_every);
@@ -271,6 +272,7 @@ void MappingConfig::validate() const {
   need(loop.tukey_width > 0 && loop.tukey_offset >= 0, "loop.tukey_width must be positive, loop.tukey_offset >= 0");
   need(localize.min_overlap > 0 && localize.min_overlap <= 1, "localize.min_overlap must be in (0, 1]");
   need(localize.submap_radius > 0, "localize.submap_radius must be positive");
+  need(localize.max_submaps >= 1, "localize.max_submaps must be >= 1");
   need(localize.min_inlier_fraction > 0 && localize.min_inlier_fraction <= 1, "localize.min_inlier_fraction must be in (0, 1]");
   need(localize.max_inlier_rmse > 0, "localize.max_inlier_rmse must be positive");
   need(localize.relocalize_every >= 1, "localize.relocalize_every must be >= 1");

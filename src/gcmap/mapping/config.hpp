@@ -136,7 +136,10 @@ struct LocalizationConfig {
   // A frame tracks while at least this fraction of its points fall in voxels of the prior map
   // (at global.voxel_resolution); below it the frame is lost and global initialization runs.
   double min_overlap = 0.3;
-  double submap_radius = 120.0;  // m: prior submaps whose origin is this close are matched
+  double submap_radius = 120.0;  // m: prior submaps whose origin is this close are candidates
+  // ... of which those overlapping the frame most are matched, at most this many: cost grows with
+  // each, accuracy hardly (a city map offers 30-49 within the radius).
+  int max_submaps = 8;
   // Global initialization: a ScanContext candidate is accepted when GICP aligns at least this
   // fraction of the scan within loop.inlier_distance (a scan sees beyond one submap).
   double min_inlier_fraction = 0.3;

@@ -3,6 +3,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
 
+#include <algorithm>
 #include <functional>
 
 #include "gcmap/core/error.hpp"
@@ -74,7 +75,12 @@ bool Localizer::track(const std::shared_ptr<const PointCloud>& cloud, const Eige
     targets.push_back(prior_->submaps[j].voxels);
     T_target_source.push_back(prior_->T_map_submap[j].inverse() * guess);
   }
-  const std::vector<TargetOverlap> kept = overlapping_targets(*backend_, cloud, targets, T_target_source, config_.global.th_min);
+  std::vector<TargetOverlap> kept = overlapping_targets(*backend_, cloud, targets, T_target_source, config_.global.th_min);
+  if (kept.size() > static_cast<size_t>(config_.localize.max_submaps)) {
+    std::partial_sort(kept.begin(), kept.begin() + config_.localize.max_submaps, kept.end(),
+                      [](const TargetOverlap& a, const TargetOverlap& b) { return a.overlap > b.overlap; });
+    kept.resize(config_.localize.max_submaps);
+  }
   // Keys: prior submaps by index (fixed), the previous frame (fixed), this frame.
   const int self = static_cast<int>(prior_->submaps.size()), prev = self + 1;
   FactorGraph graph;
@@ -103,7 +109,7 @@ bool Localizer::track(const std::shared_ptr<const PointCloud>& cloud, const Eige
   LevenbergMarquardt(lc, backend_).optimize(graph, values, fixed);
   out.T_map_frame = values.at(self);
   out.prior_submaps = static_cast<int>(matched.size());
-  out.map_overlap = map_overlap(*cloud, out.T_map_frame, nearby_submaps(out.T_map_frame));
+  out.map_overlap = map_overlap(*cloud, out.T_map_frame, matched);
   return out.map_overlap >= config_.localize.min_overlap;
 }
 
