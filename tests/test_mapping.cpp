@@ -10,7 +10,9 @@
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/eval/trajectory_metrics.hpp"
+#include "gcmap/io/file.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
+#include "gcmap/io/session.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "gcmap/mapping/config.hpp"
 #include "gcmap/mapping/preprocess_scan.hpp"
@@ -273,6 +275,33 @@ TEST(Mapping, Kitti00OdometryAgreesWithScanToScanGicp) {
   std::printf("largest per-frame difference odometry vs GICP: %.4f m\n", worst);
   // The data README quotes 0.69 m for the first motion from two GICP implementations.
   EXPECT_NEAR((odom[0].inverse() * odom[1]).translation().norm(), 0.69, 0.02);
+}
+
+TEST(Mapping, Kitti00SessionReloadsAndLocalizesItsOwnScans) {
+  // Smoke test of sessions on real scans: the session of a run reads back, `session info` reads it,
+  // and the run's own scans localize on it from no initial pose, where the run placed them.
+  GCMAP_REQUIRE_SHARED_DATA("kitti00_first16");
+  const std::string seq = test::shared_data() + "/kitti00_first16";
+  test::TempDir dir;
+  std::string err;
+  ASSERT_EQ(run("map " + seq + " -o " + (dir / "out") + " --quiet", &err), 0) << err;
+  ASSERT_EQ(run("session info " + (dir / "out"), &err), 0) << err;
+  const Session session = read_session(dir / "out/session");
+  const Poses mapped = read_trajectory(dir / "out/trajectory.kitti").poses;
+  ASSERT_EQ(session.trajectory.size(), 16u);
+  for (size_t f = 0; f < mapped.size(); ++f) EXPECT_LT(test::translation_error(session.trajectory[f], mapped[f]), 1e-6);
+  EXPECT_GE(session.submaps.size(), 1u);
+
+  ASSERT_EQ(run("localize --map " + (dir / "out") + " " + seq + " -o " + (dir / "loc") + " --global-init --start 4 --quiet", &err), 0)
+      << err;
+  const Poses localized = read_trajectory(dir / "loc/trajectory.kitti").poses;
+  ASSERT_EQ(localized.size(), 12u);
+  const std::string report = read_file(dir / "loc/localization.json");
+  EXPECT_EQ(report.find("\"lost\""), std::string::npos) << report.substr(0, 400);
+  for (size_t k = 0; k < localized.size(); ++k) {
+    EXPECT_LT(test::translation_error(localized[k], mapped[k + 4]), 0.05) << "frame " << k + 4;
+    EXPECT_LT(test::rotation_error_deg(localized[k], mapped[k + 4]), 0.2) << "frame " << k + 4;
+  }
 }
 
 }  // namespace
