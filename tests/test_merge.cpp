@@ -188,6 +188,18 @@ TEST(RealisticMerge, RoutesOfOneWorldJoinWhereTheyOverlapAndAnotherWorldStaysApa
   EXPECT_GT(overlap, 30);
   EXPECT_LT(sum / overlap, 0.05);
   EXPECT_LT(worst, 0.15);
+
+  // Sharper than B placed by its one verified place (see TheMergedMapIsSharperThanTheBestSingleAlignment).
+  const SessionPlacement& p = r.placements[2];
+  const Eigen::Isometry3d T_a_b =
+      a.session.T_world_submap[p.target] * p.T_target_source * b.session.T_world_submap[p.source].inverse();
+  std::vector<Eigen::Isometry3d> placed;
+  for (const Eigen::Isometry3d& T : b.session.T_world_submap) placed.push_back(T_a_b * T);
+  const auto first_b = r.T_merged_submap.begin() + r.first_submap[2];
+  const double single = entropy_of_both(a.session, b.session, a.session.T_world_submap, placed);
+  const double merged = entropy_of_both(a.session, b.session, {r.T_merged_submap.begin(), first_b}, {first_b, r.T_merged_submap.end()});
+  std::printf("[ merge    ] realistic, mean map entropy: by the best single alignment %.4f, merged %.4f\n", single, merged);
+  EXPECT_LT(merged, single);
 }
 
 struct CliResult {
