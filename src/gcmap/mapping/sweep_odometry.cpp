@@ -51,8 +51,7 @@ SweepEstimate SweepOdometry::track(const std::shared_ptr<PointCloud>& cloud, dou
   return e;
 }
 
-std::shared_ptr<const PointCloud> SweepOdometry::restart_from_first(double dt, const Vector6d& velocity) {
-  if (dt > config_.max_gap) return nullptr;  // the motion then says little about the first sweep
+std::shared_ptr<const PointCloud> SweepOdometry::restart_from_first(const Vector6d& velocity) {
   auto first = std::make_shared<PointCloud>(std::move(first_->raw));
   deskew(*first, velocity);
   odometry_ = Odometry(config_, backend_);
@@ -83,7 +82,10 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
       // Registered undeskewed: only a first velocity, between the stamps.
       velocity = se3_log(last_->first.inverse() * T_world_stamp) / dt;
       T = T_world_stamp;
-      if (first_ && (e.first_deskewed = restart_from_first(dt, velocity))) e.first_frame = first_->frame;
+      if (first_ && !e.failed) {
+        e.first_deskewed = restart_from_first(velocity);
+        e.first_frame = first_->frame;
+      }
       continue;
     }
     const Eigen::Isometry3d T_world_mean = T_world_stamp * se3_exp(t_mean * velocity);

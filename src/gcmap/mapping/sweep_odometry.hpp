@@ -35,7 +35,7 @@ class SweepOdometry {
 
   // The first sweep entered the model as it came; with the first motion registered (smeared
   // against smeared, which cancels), it is deskewed and the model started again from it.
-  std::shared_ptr<const PointCloud> restart_from_first(double dt, const Vector6d& velocity);
+  std::shared_ptr<const PointCloud> restart_from_first(const Vector6d& velocity);
 
   OdometryConfig config_;
   std::shared_ptr<LinearizationBackend> backend_;
