@@ -153,7 +153,7 @@ struct LocalizationConfig {
 // Merging sessions (gcmap merge): cross-session places are found and verified with loop.*.
 struct MergeConfig {
   // Looser than loop.max_descriptor_distance: another session passes a place in another lane or
-  // direction; the GICP verification (loop.*) rejects the wrong ones.
+  // direction; the GICP verification (below) rejects the wrong ones.
   double max_descriptor_distance = 0.3;
   int max_verifications = 10;  // GICP checks (distinct submap pairs, best ScanContext candidates first) per session to place
   // A place between sessions is accepted when GICP aligns at least min_inlier_fraction of the
