@@ -9,7 +9,6 @@
 #include <cmath>
 
 #include "gcmap/core/error.hpp"
-#include "gcmap/core/se3.hpp"
 #include "gcmap/mapping/preprocess_scan.hpp"
 
 namespace gcmap {
