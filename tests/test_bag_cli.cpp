@@ -1,4 +1,4 @@
-// gcmap bag-info end to end: table and JSON, exit code 2 with one line on bad input.
+// gcmap bag-info, map and localize on bags end to end: exit code 2 with one line on bad input.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -82,6 +82,20 @@ TEST(BagCli, MapReadsAnMcapRecordingEndToEnd) {
   const CliRun folder = run_gcmap("map " + (dir / "out") + " --topic /x -o " + (dir / "o3"));
   EXPECT_EQ(folder.code, 2);
   EXPECT_NE(folder.err.find("apply to bags"), std::string::npos) << folder.err;
+
+  // The same recording localizes on the map it made, from half a second in, where the map put it.
+  const CliRun loc = run_gcmap("localize --map " + (dir / "out") + " " + (dir / "drive.mcap") + " --start-time 0.45 -o " +
+                               (dir / "loc") + " --global-init --quiet");
+  ASSERT_EQ(loc.code, 0) << loc.err;
+  const Trajectory localized = read_trajectory(dir / "loc/trajectory.tum");
+  ASSERT_EQ(localized.size(), 10u);
+  EXPECT_NEAR(localized.stamps[0], 100.5, 1e-6);
+  for (size_t k = 1; k < localized.size(); ++k)  // the first frame may wait for its fix
+    EXPECT_LT(translation_error(localized.poses[k], est.poses[k + 5]), 0.05) << "frame " << k + 5;
+  const CliRun loc_topic = run_gcmap("localize --map " + (dir / "out") + " " + (dir / "drive.mcap") + " --topic /nope -o " +
+                                     (dir / "loc2") + " --global-init");
+  EXPECT_EQ(loc_topic.code, 2);
+  EXPECT_NE(loc_topic.err.find("/os/points"), std::string::npos) << loc_topic.err;
 }
 
 }  // namespace

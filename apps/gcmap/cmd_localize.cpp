@@ -7,10 +7,10 @@
 #include "gcmap/core/memory.hpp"
 #include "gcmap/cuda/cuda_backend.hpp"
 #include "gcmap/io/file.hpp"
-#include "gcmap/io/sequence.hpp"
 #include "gcmap/io/session.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "gcmap/mapping/localizer.hpp"
+#include "map_runner.hpp"
 #include "progress.hpp"
 
 namespace gcmap::cli {
@@ -20,9 +20,10 @@ namespace {
 namespace fs = std::filesystem;
 
 struct LocalizeOptions {
-  std::string map, input, output, initial_pose, config_file, device = "auto";
-  bool global_init = false, quiet = false;
-  int start = 0, max_frames = 0, threads = 0;
+  MapRunOptions input;  // the scans: input, start, max_frames, quiet and the bag options
+  std::string map, output, initial_pose, config_file, device = "auto";
+  bool global_init = false;
+  int threads = 0;
 };
 
 Json frames_json(const std::vector<LocalizedFrame>& frames, int start) {
@@ -48,13 +49,14 @@ int localize(const LocalizeOptions& o) {
   Session s = read_session(folder);
   MappingConfig config = o.config_file.empty() ? s.config : MappingConfig::load(o.config_file);
   config.global.voxel_resolution = s.config.global.voxel_resolution;  // the prior's voxel maps are at it
-  FolderScanSource source(o.input, o.start, o.max_frames);
+  Input input = open_input(o.input);
+  ScanSource& source = *input.source;
   fs::create_directories(o.output);
   auto prior = std::make_shared<PriorMap>(PriorMap{std::move(s.submaps), std::move(s.T_world_submap)});
   Localizer localizer(prior, config, cuda::make_backend(parse_device(o.device, "--device")),
-                      PipelineOptions{.kitti_hdl64 = source.kitti_hdl64(), .elevation_calibration = nullptr});
+                      PipelineOptions{.kitti_hdl64 = input.kitti_hdl64, .elevation_calibration = nullptr});
   if (!o.initial_pose.empty()) localizer.set_initial_pose(parse_pose_option("--initial-pose", o.initial_pose));
-  Progress progress("frame", source.size_hint(), o.quiet);
+  Progress progress("frame", source.size_hint(), o.input.quiet);
   size_t tracking = 0;
   double overlap = 0;
   while (auto r = source.next()) {
@@ -85,7 +87,10 @@ int localize(const LocalizeOptions& o) {
   report["mean_map_overlap"] = frames.empty() ? 0.0 : overlap / frames.size();
   report["seconds"] = progress.seconds();
   report["peak_rss_mb"] = peak_rss_bytes() / 1e6;
-  report["per_frame"] = frames_json(frames, o.start);
+  Json warnings = Json::array();  // e.g. a truncated bag: localized up to the damage
+  for (const std::string& w : source.warnings()) warnings.push_back(w);
+  report["input_warnings"] = warnings;
+  report["per_frame"] = frames_json(frames, input.frame_offset);
   write_file_atomic((fs::path(o.output) / "localization.json").string(), [&](std::ostream& out) { out << report.dump() << "\n"; });
   std::fprintf(stderr,
                "Localized %zu frames in %.1f s: %zu held by the map (%.0f %%), %.0f %% of points on average had no map "
@@ -102,16 +107,20 @@ void add_localize(CLI::App& app, Runner& run) {
   auto o = std::make_shared<LocalizeOptions>();
   auto* cmd = app.add_subcommand("localize", "Track a sequence on a prior map (the session of an earlier gcmap map run)");
   cmd->add_option("--map", o->map, "Output folder of gcmap map (or its session/ folder)")->required();
-  cmd->add_option("input", o->input, "Sequence folder (KITTI layout or a folder of scans)")->required();
+  cmd->add_option("input", o->input.input, "Sequence folder (KITTI layout or a folder of scans) or a ROS bag (.mcap, .db3 or its folder, .bag)")
+      ->required();
+  cmd->add_option("--topic", o->input.topic, "Bags: the point-cloud topic (default: the only one)");
+  cmd->add_option("--start-time", o->input.start_time, "Bags: start this many seconds after the first message");
+  cmd->add_option("--duration", o->input.duration, "Bags: localize this many seconds (0 = to the end)");
   cmd->add_option("-o,--output", o->output, "Output folder")->required();
   cmd->add_option("--initial-pose", o->initial_pose, "First frame's pose in the map: \"x y z qx qy qz qw\"");
   cmd->add_flag("--global-init", o->global_init, "Find the first pose by ScanContext place recognition and GICP");
   cmd->add_option("--config", o->config_file, "YAML configuration (default: the prior session's)");
-  cmd->add_option("--start", o->start, "First scan index")->capture_default_str();
-  cmd->add_option("--max-frames", o->max_frames, "Process at most this many scans (0 = all)")->capture_default_str();
+  cmd->add_option("--start", o->input.start, "First scan index")->capture_default_str();
+  cmd->add_option("--max-frames", o->input.max_frames, "Process at most this many scans (0 = all)")->capture_default_str();
   cmd->add_option("--device", o->device, "cpu, cuda or auto")->capture_default_str();
   cmd->add_option("--threads", o->threads, "Worker threads (0 = all cores)")->capture_default_str();
-  cmd->add_flag("--quiet", o->quiet, "No progress line");
+  cmd->add_flag("--quiet", o->input.quiet, "No progress line");
   cmd->callback([o, &run] { run = [o] { return localize(*o); }; });
 }
 
