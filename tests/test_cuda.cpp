@@ -4,7 +4,11 @@
 #include <random>
 #include <vector>
 
+#include <Eigen/Eigenvalues>
+
 #include "gcmap/core/error.hpp"
+#include "gcmap/core/kdtree.hpp"
+#include "gcmap/core/preprocess.hpp"
 #include "gcmap/cuda/cuda_backend.hpp"
 #include "gcmap/cuda/voxel_hash.hpp"
 #include "gcmap/graph/levenberg_marquardt.hpp"
@@ -95,6 +99,21 @@ TEST(Device, BackendSelection) {
     } catch (const Error& e) {
       EXPECT_NE(std::string(e.what()).find("device cuda"), std::string::npos) << e.what();
     }
+  }
+}
+
+// Without a GPU backend, scans prepared through a backend are the plain preprocessing's, bit for bit.
+TEST(Device, ScansPreparedThroughTheCpuBackendAreThePlainOnes) {
+  const sim::Simulator simulator(sim::SimulationConfig{.scenario = "small"});
+  PreprocessConfig config;
+  config.elevation_sigma_deg = 0.1;
+  CpuBackend cpu;
+  const PointCloud plain = preprocess_scan(simulator.scan(2), config), through = preprocess_scan(simulator.scan(2), config, &cpu);
+  ASSERT_EQ(through.size(), plain.size());
+  ASSERT_GT(plain.size(), 1000u);
+  for (size_t i = 0; i < plain.size(); ++i) {
+    ASSERT_EQ(through.points[i], plain.points[i]) << i;
+    ASSERT_EQ(through.covs[i], plain.covs[i]) << i;
   }
 }
 
@@ -237,6 +256,60 @@ TEST(GpuParityOdometry, RegistrationsAndOdometryMatchTheCpu) {
   for (size_t f = 0; f < frames.size(); ++f) apart = std::max(apart, test::translation_error(runs[1][f], runs[0][f]));
   EXPECT_LT(apart, 0.01);
   std::printf("odometry on the GPU and the CPU at most %.2g m apart over %zu frames\n", apart, frames.size());
+}
+
+// Covariances on the device (brute-force neighbours) equal the CPU's (kd-tree) within float
+// tolerance wherever the neighbourhood's normal is well defined (its two smallest eigenvalues
+// apart), with and without the beam-elevation term; whole scans of the `small` drive prepared
+// either way register alike.
+TEST(GpuParityPreprocessing, CovariancesMatchTheCpu) {
+  GCMAP_REQUIRE_GPU();
+  const sim::Simulator simulator(sim::SimulationConfig{.scenario = "small"});
+  const MappingConfig config;
+  const auto gpu = std::make_shared<cuda::CudaBackend>();
+  for (const double elevation_sigma : {0.0, 0.002}) {
+    const PointCloud base = voxel_downsample(range_filter(simulator.scan(3), config.preprocess.min_range, config.preprocess.max_range),
+                                             config.preprocess.downsample);
+    CovarianceConfig cc;
+    cc.num_neighbors = config.preprocess.num_neighbors;
+    cc.elevation_sigma = elevation_sigma;
+    PointCloud on_cpu = base, on_gpu = base;
+    estimate_covariances(on_cpu, cc);
+    gpu->estimate_covariances(on_gpu, cc);
+    ASSERT_EQ(on_gpu.covs.size(), on_cpu.covs.size());
+    const KdTree tree(base.points);
+    size_t compared = 0, differ = 0;
+    for (size_t i = 0; i < base.size(); ++i) {
+      uint32_t idx[32];
+      float d2[32];
+      const size_t found = tree.knn(base.points[i], cc.num_neighbors, idx, d2);
+      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+      for (size_t j = 0; j < found; ++j) mean += base.points[idx[j]].cast<double>();
+      mean /= found;
+      Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+      for (size_t j = 0; j < found; ++j) {
+        const Eigen::Vector3d d = base.points[idx[j]].cast<double>() - mean;
+        C += d * d.transpose();
+      }
+      const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(C).eigenvalues();
+      if (ev[1] - ev[0] < 0.05 * ev[2]) continue;  // the normal is ill-defined: any in a plane will do
+      ++compared;
+      differ += (on_gpu.covs[i] - on_cpu.covs[i]).cwiseAbs().maxCoeff() > 1e-3f * on_cpu.covs[i].norm();
+    }
+    EXPECT_GT(compared, base.size() / 2);
+    EXPECT_LE(differ, compared / 1000) << differ << " of " << compared << " covariances differ";
+    std::printf("elevation sigma %.3f: %zu of %zu covariances compared, %zu differ\n", elevation_sigma, compared, base.size(), differ);
+  }
+  // Prepared through the backend, as the pipeline does: the registrations land where the CPU's do.
+  const ScanNode target = make_scan_node(preprocess_scan(simulator.scan(10), config.preprocess), 1.0);
+  const PointCloud source_cpu = preprocess_scan(simulator.scan(11), config.preprocess);
+  const PointCloud source_gpu = preprocess_scan(simulator.scan(11), config.preprocess, gpu.get());
+  const Eigen::Isometry3d guess = simulator.poses()[10].inverse() * simulator.poses()[11];
+  CpuBackend cpu;
+  const RegistrationResult c = cpu.align(source_cpu, target.voxels, guess, RegistrationConfig{});
+  const RegistrationResult g = cpu.align(source_gpu, target.voxels, guess, RegistrationConfig{});
+  EXPECT_LT(test::translation_error(g.T_target_source, c.T_target_source), 1e-3);
+  EXPECT_LT(test::rotation_error_deg(g.T_target_source, c.T_target_source), 0.01);
 }
 
 }  // namespace

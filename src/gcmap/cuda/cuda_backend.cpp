@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <map>
+#include <mutex>
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/registration/align.hpp"
@@ -155,6 +156,12 @@ struct CudaBackend::Impl {
     }
   } registration;
 
+  // estimate_covariances(): called by the threads that prepare scans, so it has its own buffers and
+  // lock (the default stream orders its work with the mapping thread's).
+  std::mutex covariance_mutex;
+  device::CovarianceScratch covariance_scratch;
+  std::vector<float> covariance_xyz, covariance_out;
+
   void release_unused() {
     for (auto it = clouds.begin(); it != clouds.end();) {
       if (it->second.host.expired()) device::free_cloud(it->second.device), it = clouds.erase(it);
@@ -274,6 +281,28 @@ RegistrationResult CudaBackend::align(const PointCloud& source, const std::share
   return gcmap::align(problem, init_T_target_source, config);
 }
 
+void CudaBackend::estimate_covariances(PointCloud& cloud, const CovarianceConfig& config) {
+  // Brute force is quadratic in the points: past a dense scan's size the CPU's kd-tree wins.
+  constexpr size_t kMaxPoints = 150000;
+  if (config.num_neighbors < 1 || config.num_neighbors > device::kMaxNeighbors || cloud.size() > kMaxPoints)
+    return LinearizationBackend::estimate_covariances(cloud, config);
+  const size_t n = cloud.size();
+  std::lock_guard lock(impl_->covariance_mutex);
+  std::vector<float>& xyz = impl_->covariance_xyz;
+  std::vector<float>& out = impl_->covariance_out;
+  xyz.resize(3 * n);
+  out.resize(6 * n);
+  for (size_t i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k) xyz[3 * i + k] = cloud.points[i][k];
+  device::point_covariances(xyz.data(), static_cast<uint32_t>(n), config.num_neighbors, config.epsilon, config.elevation_sigma,
+                            out.data(), impl_->covariance_scratch);
+  cloud.covs.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const float* c = &out[6 * i];
+    cloud.covs[i] << c[0], c[1], c[2], c[1], c[3], c[4], c[2], c[4], c[5];
+  }
+}
+
 void CudaBackend::release_unused() { impl_->release_unused(); }
 
 DeviceMemory CudaBackend::memory() const {
@@ -312,6 +341,9 @@ void CudaBackend::overlaps(const std::shared_ptr<const PointCloud>&, std::span<c
 RegistrationResult CudaBackend::align(const PointCloud& source, const std::shared_ptr<const GaussianVoxelMap>& target,
                                       const Eigen::Isometry3d& init, const RegistrationConfig& config) {
   return LinearizationBackend::align(source, target, init, config);
+}
+void CudaBackend::estimate_covariances(PointCloud& cloud, const CovarianceConfig& config) {
+  LinearizationBackend::estimate_covariances(cloud, config);
 }
 void CudaBackend::release_unused() {}
 DeviceMemory CudaBackend::memory() const { return {}; }

@@ -32,6 +32,8 @@ class CudaBackend : public LinearizationBackend {
                 std::span<const Eigen::Isometry3d> T_target_source, std::span<double> out) override;
   RegistrationResult align(const PointCloud& source, const std::shared_ptr<const GaussianVoxelMap>& target,
                            const Eigen::Isometry3d& init_T_target_source, const RegistrationConfig& config) override;
+  // Brute-force k nearest neighbours on the device (device::point_covariances).
+  void estimate_covariances(PointCloud& cloud, const CovarianceConfig& config) override;
 
   // Frees the device copies of clouds and maps whose host objects are gone (also done whenever the
   // set of factors changes).

@@ -235,6 +235,117 @@ __global__ void overlap_kernel(const float* means, uint32_t n, const VoxelMap* t
   if (threadIdx.x == 0) block_hits[blockIdx.x] = total;
 }
 
+// The k nearest neighbours of one point (itself included), kept sorted in registers while the
+// block streams the cloud through shared memory in tiles.
+__device__ int nearest_neighbors(const float4* means, uint32_t n, float4 q, int k, uint32_t* idx, float* d2, bool active) {
+  __shared__ float4 tile[kThreads];
+  int found = 0;
+  for (uint32_t base = 0; base < n; base += kThreads) {
+    const uint32_t j = base + threadIdx.x;
+    if (j < n) tile[threadIdx.x] = means[j];
+    __syncthreads();
+    const uint32_t count = min(static_cast<uint32_t>(kThreads), n - base);
+    for (uint32_t t = 0; active && t < count; ++t) {
+      const float dx = tile[t].x - q.x, dy = tile[t].y - q.y, dz = tile[t].z - q.z;
+      const float d = dx * dx + dy * dy + dz * dz;
+      if (found == k && d >= d2[k - 1]) continue;
+      int pos = found < k ? found++ : k - 1;
+      while (pos > 0 && d2[pos - 1] > d) {  // ties keep the lower index first, as the scan order gives
+        d2[pos] = d2[pos - 1];
+        idx[pos] = idx[pos - 1];
+        --pos;
+      }
+      d2[pos] = d;
+      idx[pos] = base + t;
+    }
+    __syncthreads();
+  }
+  return found;
+}
+
+// Unit eigenvector of the smallest eigenvalue of a symmetric 3x3 matrix (cyclic Jacobi in double).
+__device__ void smallest_eigenvector(double A[3][3], double v[3]) {
+  double V[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  for (int sweep = 0; sweep < 12; ++sweep) {
+    const double off = A[0][1] * A[0][1] + A[0][2] * A[0][2] + A[1][2] * A[1][2];
+    if (off <= 1e-30 * (A[0][0] * A[0][0] + A[1][1] * A[1][1] + A[2][2] * A[2][2]) + 1e-300) break;
+    for (int p = 0; p < 2; ++p) {
+      for (int q = p + 1; q < 3; ++q) {
+        if (A[p][q] == 0.0) continue;
+        const double theta = (A[q][q] - A[p][p]) / (2.0 * A[p][q]);
+        const double t = (theta >= 0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
+        const double c = 1.0 / sqrt(t * t + 1.0), s = t * c;
+        for (int r = 0; r < 3; ++r) {  // A <- A J
+          const double arp = A[r][p], arq = A[r][q];
+          A[r][p] = c * arp - s * arq;
+          A[r][q] = s * arp + c * arq;
+        }
+        for (int r = 0; r < 3; ++r) {  // A <- J^T A
+          const double apr = A[p][r], aqr = A[q][r];
+          A[p][r] = c * apr - s * aqr;
+          A[q][r] = s * apr + c * aqr;
+        }
+        for (int r = 0; r < 3; ++r) {
+          const double vrp = V[r][p], vrq = V[r][q];
+          V[r][p] = c * vrp - s * vrq;
+          V[r][q] = s * vrp + c * vrq;
+        }
+      }
+    }
+  }
+  int m = 0;
+  for (int i = 1; i < 3; ++i)
+    if (A[i][i] < A[m][m]) m = i;
+  for (int r = 0; r < 3; ++r) v[r] = V[r][m];
+}
+
+__global__ void covariance_kernel(const float4* means, uint32_t n, int k, double epsilon, double elevation_sigma, float* covs) {
+  const uint32_t i = blockIdx.x * kThreads + threadIdx.x;
+  const bool active = i < n;
+  const float4 q = means[active ? i : 0];
+  uint32_t idx[kMaxNeighbors];
+  float d2[kMaxNeighbors];
+  const int found = nearest_neighbors(means, n, q, k, idx, d2, active);
+  if (!active) return;
+  float* out = covs + 6 * static_cast<size_t>(i);
+  if (found < 4) {  // as the CPU: too few neighbours for a shape
+    const float iso[6] = {0.01f, 0.f, 0.f, 0.01f, 0.f, 0.01f};
+    for (int c = 0; c < 6; ++c) out[c] = iso[c];
+    return;
+  }
+  double sum[3] = {0, 0, 0}, sum2[3][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
+  for (int j = 0; j < found; ++j) {
+    const float4 p = means[idx[j]];
+    const double d[3] = {static_cast<double>(p.x - q.x), static_cast<double>(p.y - q.y), static_cast<double>(p.z - q.z)};
+    for (int r = 0; r < 3; ++r) {
+      sum[r] += d[r];
+      for (int c = 0; c < 3; ++c) sum2[r][c] += d[r] * d[c];
+    }
+  }
+  double C[3][3];
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) C[r][c] = sum2[r][c] / found - (sum[r] / found) * (sum[c] / found);
+  double nrm[3];
+  smallest_eigenvector(C, nrm);
+  // U diag(epsilon, 1, 1) U^T = I - (1 - epsilon) n n^T: only the normal matters.
+  double R[3][3];
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) R[r][c] = (r == c ? 1.0 : 0.0) - (1.0 - epsilon) * nrm[r] * nrm[c];
+  if (elevation_sigma > 0.0) {
+    const double x = q.x, y = q.y, z = q.z;
+    const double h = fmax(sqrt(x * x + y * y), 1e-6);
+    const double v[3] = {-z * x / h, -z * y / h, h};
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) R[r][c] += elevation_sigma * elevation_sigma * v[r] * v[c];
+  }
+  out[0] = static_cast<float>(R[0][0]);
+  out[1] = static_cast<float>(R[0][1]);
+  out[2] = static_cast<float>(R[0][2]);
+  out[3] = static_cast<float>(R[1][1]);
+  out[4] = static_cast<float>(R[1][2]);
+  out[5] = static_cast<float>(R[2][2]);
+}
+
 // xyz -> (x, y, z, 0): a point is one aligned 16-byte load on the device.
 std::vector<float> padded_means(const float* xyz, uint32_t n) {
   std::vector<float> means(4 * static_cast<size_t>(n), 0.f);
@@ -440,6 +551,30 @@ void overlap_counts(const Cloud& source, const std::vector<VoxelMap>& targets, c
   std::vector<uint32_t> block_hits(blocks);
   check(cudaMemcpy(block_hits.data(), scratch.block_hits, blocks * sizeof(uint32_t), cudaMemcpyDeviceToHost), "overlap");
   for (size_t b = 0; b < blocks; ++b) hits[b / per_target] += block_hits[b];
+}
+
+CovarianceScratch::~CovarianceScratch() {
+  device_free(means);
+  device_free(covs);
+}
+
+void point_covariances(const float* xyz, uint32_t n, int k, double epsilon, double elevation_sigma, float* cov6,
+                       CovarianceScratch& scratch) {
+  if (k < 1 || k > kMaxNeighbors) throw Error("point_covariances: k must be in [1, " + std::to_string(kMaxNeighbors) + "]");
+  if (n == 0) return;
+  if (n > scratch.capacity) {
+    device_free(scratch.means);
+    device_free(scratch.covs);
+    scratch.means = device_alloc<float>(4 * static_cast<size_t>(n));
+    scratch.covs = device_alloc<float>(6 * static_cast<size_t>(n));
+    scratch.capacity = n;
+  }
+  const std::vector<float> means = padded_means(xyz, n);
+  upload(scratch.means, means.data(), means.size());
+  covariance_kernel<<<num_blocks(n), kThreads>>>(reinterpret_cast<const float4*>(scratch.means), n, k, epsilon, elevation_sigma,
+                                                 scratch.covs);
+  check(cudaGetLastError(), "covariance_kernel");
+  check(cudaMemcpy(cov6, scratch.covs, 6 * static_cast<size_t>(n) * sizeof(float), cudaMemcpyDeviceToHost), "covariances");
 }
 
 }  // namespace gcmap::cuda::device

@@ -94,4 +94,23 @@ struct OverlapScratch {
 void overlap_counts(const Cloud& source, const std::vector<VoxelMap>& targets, const float* T, uint32_t* hits,
                     OverlapScratch& scratch);
 
+// Grow-only device buffers of point_covariances.
+struct CovarianceScratch {
+  CovarianceScratch() = default;
+  CovarianceScratch(const CovarianceScratch&) = delete;
+  CovarianceScratch& operator=(const CovarianceScratch&) = delete;
+  ~CovarianceScratch();
+  float* means = nullptr;
+  float* covs = nullptr;
+  size_t capacity = 0;
+};
+
+// estimate_covariances (core/preprocess.hpp) on the device: per point of xyz (3 per point), the
+// covariance's upper triangle (xx xy xz yy yz zz) into cov6, from its k nearest neighbours (itself
+// included; exact, by brute force over the cloud) regularized plane-like to eigenvalues
+// (epsilon, 1, 1), plus the beam-elevation term when elevation_sigma > 0. k at most kMaxNeighbors.
+constexpr int kMaxNeighbors = 32;
+void point_covariances(const float* xyz, uint32_t n, int k, double epsilon, double elevation_sigma, float* cov6,
+                       CovarianceScratch& scratch);
+
 }  // namespace gcmap::cuda::device

@@ -22,6 +22,10 @@ const char* device_name(Device device) {
   return "?";
 }
 
+void LinearizationBackend::estimate_covariances(PointCloud& cloud, const CovarianceConfig& config) {
+  gcmap::estimate_covariances(cloud, config);
+}
+
 void LinearizationBackend::overlaps(const std::shared_ptr<const PointCloud>& source,
                                     std::span<const std::shared_ptr<const GaussianVoxelMap>> targets,
                                     std::span<const Eigen::Isometry3d> T_target_source, std::span<double> out) {

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "gcmap/core/preprocess.hpp"
 #include "gcmap/graph/factor_graph.hpp"
 #include "gcmap/registration/registration.hpp"
 
@@ -36,6 +37,9 @@ class LinearizationBackend {
   // on the CPU; a GPU backend evaluates the points on the device. Not thread-safe on a GPU.
   virtual RegistrationResult align(const PointCloud& source, const std::shared_ptr<const GaussianVoxelMap>& target,
                                    const Eigen::Isometry3d& init_T_target_source, const RegistrationConfig& config);
+  // estimate_covariances (core/preprocess.hpp) of a scan being prepared. The default runs on the
+  // CPU; a GPU backend runs it on the device. Thread-safe: scans are prepared on several threads.
+  virtual void estimate_covariances(PointCloud& cloud, const CovarianceConfig& config);
   virtual Device device() const = 0;
   // For reports: "cpu" or "cuda: <device name>".
   virtual std::string name() const = 0;

@@ -145,7 +145,7 @@ LocalizedFrame Localizer::add_scan(PointCloud scan, double stamp) {
     lost_since_ = 0;
   }
   // Deskewed in place by the odometry: registered on the map, it gives the pose at the stamp.
-  const std::shared_ptr<PointCloud> cloud = prepare_scan(std::move(scan), stamp, config_, options_).cloud;
+  const std::shared_ptr<PointCloud> cloud = prepare_scan(std::move(scan), stamp, config_, options_, backend_.get()).cloud;
   const SweepEstimate sweep = odometry_.track(cloud, stamp);
   odometry_poses_.push_back(sweep.T_world_frame);
   f.deskewed = sweep.deskewed;

@@ -68,10 +68,11 @@ MappingPipeline::MappingPipeline(const MappingConfig& config, std::shared_ptr<Li
       mapper_(config, backend_) {}
 
 PreparedScan MappingPipeline::prepare(PointCloud raw, double stamp) const {
-  return prepare_scan(std::move(raw), stamp, config_, options_);
+  return prepare_scan(std::move(raw), stamp, config_, options_, backend_.get());
 }
 
-PreparedScan prepare_scan(PointCloud raw, double stamp, const MappingConfig& config, const PipelineOptions& options) {
+PreparedScan prepare_scan(PointCloud raw, double stamp, const MappingConfig& config, const PipelineOptions& options,
+                          LinearizationBackend* backend) {
   Stopwatch w;
   PreparedScan out;
   out.stamp = stamp;
@@ -89,7 +90,7 @@ PreparedScan prepare_scan(PointCloud raw, double stamp, const MappingConfig& con
   if (options.kitti_hdl64 && config.preprocess.kitti_vertical_correction) kitti_vertical_correction(raw);
   if (options.elevation_calibration) options.elevation_calibration->correct(raw);
   // Range filtering drops NaN points too; what is left of a NaN-only scan is empty (unusable).
-  out.cloud = std::make_shared<PointCloud>(preprocess_scan(raw, config.preprocess));
+  out.cloud = std::make_shared<PointCloud>(preprocess_scan(raw, config.preprocess, backend));
   out.preprocess_ms = w.ms();
   return out;
 }

@@ -61,7 +61,9 @@ struct PreparedScan {
 // [0, sweep_period); prepare_scan sets them when preprocess.deskew_from_azimuth is on and the scan has none.
 void times_from_azimuth(PointCloud& cloud, const PreprocessConfig& config);
 
-PreparedScan prepare_scan(PointCloud raw, double stamp, const MappingConfig& config, const PipelineOptions& options);
+// backend (may be null: the CPU) estimates the covariances.
+PreparedScan prepare_scan(PointCloud raw, double stamp, const MappingConfig& config, const PipelineOptions& options,
+                          LinearizationBackend* backend = nullptr);
 
 class MappingPipeline {
  public:
