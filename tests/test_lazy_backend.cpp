@@ -1,6 +1,7 @@
 // Re-linearize only what moved (graph/lazy_backend.hpp) against re-linearizing every factor.
 #include <cstdio>
 
+#include "gcmap/core/error.hpp"
 #include "gcmap/core/preprocess.hpp"
 #include "gcmap/graph/lazy_backend.hpp"
 #include "gcmap/graph/levenberg_marquardt.hpp"
@@ -114,6 +115,56 @@ TEST(LazyBackend, KeptModelIsTheLinearizationCarriedToTheNewPoses) {
   FactorLinearization far;
   lazy.linearize(factors, at2, {&far, 1});
   EXPECT_EQ(lazy.linearized(), 2u);
+}
+
+TEST(LazyBackend, OverBudgetTheFactorsThatMovedMostAreLinearizedFirst) {
+  const Scene s = make_scene(2);
+  std::vector<std::shared_ptr<MatchingCostFactor>> owned;
+  for (int i = 0; i < 3; ++i) owned.push_back(std::make_shared<MatchingCostFactor>(1, 0, s.nodes[1].cloud, s.nodes[0].voxels));
+  Factor* const factors[3] = {owned[0].get(), owned[1].get(), owned[2].get()};
+  const Eigen::Isometry3d T0 = s.truth[0], T1 = s.truth[1];
+  LazyBackend lazy(std::make_shared<CpuBackend>(), 0.01);
+  lazy.set_max_relinearizations(1);
+  std::vector<FactorLinearization> out(3);
+  // Factors without a model are linearized whatever the budget.
+  const FactorPoses at_start[3] = {FactorPoses{&T1, &T0}, FactorPoses{&T1, &T0}, FactorPoses{&T1, &T0}};
+  lazy.linearize(factors, at_start, out);
+  EXPECT_EQ(lazy.linearized(), 3u);
+  const FactorLinearization first = out[0];
+  // All three move past the threshold, by 2, 5 and 3 cm: only the 5 cm one is linearized anew.
+  const auto shifted = [&](double x) { return T1 * se3_exp((Vector6d() << 0, 0, 0, x, 0, 0).finished()); };
+  const Eigen::Isometry3d moved[3] = {shifted(0.02), shifted(0.05), shifted(0.03)};
+  const FactorPoses at_moved[3] = {FactorPoses{&moved[0], &T0}, FactorPoses{&moved[1], &T0}, FactorPoses{&moved[2], &T0}};
+  lazy.linearize(factors, at_moved, out);
+  EXPECT_EQ(lazy.linearized(), 4u);
+  EXPECT_EQ(lazy.reused(), 2u);
+  EXPECT_EQ(lazy.deferred(), 2u);
+  FactorLinearization fresh;
+  CpuBackend().linearize({&factors[1], 1}, {&at_moved[1], 1}, {&fresh, 1});
+  EXPECT_EQ(out[1].H, fresh.H);
+  EXPECT_EQ(out[1].error, fresh.error);
+  EXPECT_EQ(out[0].H, first.H);  // deferred: its model stands in
+  EXPECT_EQ(out[2].H, first.H);
+  // The next call takes the deferred one that moved most (3 cm), then the last; unlimited, both.
+  lazy.linearize(factors, at_moved, out);
+  EXPECT_EQ(lazy.linearized(), 5u);
+  EXPECT_EQ(out[0].H, first.H);
+  EXPECT_NE(out[2].H, first.H);
+  lazy.set_max_relinearizations(0);
+  lazy.linearize(factors, at_moved, out);
+  EXPECT_EQ(lazy.linearized(), 6u);
+  EXPECT_EQ(lazy.deferred(), 3u);
+}
+
+TEST(MappingConfig, MaxRelinearizationsKey) {
+  EXPECT_EQ(MappingConfig{}.global.max_relinearizations, 0);  // no limit unless asked for
+  EXPECT_EQ(MappingConfig::parse("global:\n  max_relinearizations: 200\n", "c.yaml").global.max_relinearizations, 200);
+  try {
+    MappingConfig::parse("global:\n  max_relinearizations: -1\n", "c.yaml");
+    ADD_FAILURE();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("global.max_relinearizations"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

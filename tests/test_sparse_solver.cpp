@@ -51,6 +51,24 @@ TEST(SparseSolver, ReusedAnalysisEqualsFreshAnalysis) {
   }
 }
 
+TEST(SparseSolver, AutoTakesCholmodFromItsSizeOnAndSolvesAlike) {
+  SparseSolver solver(LinearSolver::automatic);
+  const Eigen::SparseMatrix<double> small = random_spd(60, 7, 5), large = random_spd(3000, 49, 6);  // 147k non-zeros
+  ASSERT_GE(large.nonZeros(), kAutoCholmodNonZeros);
+  ASSERT_TRUE(solver.factorize(small));
+  EXPECT_EQ(solver.active(), LinearSolver::eigen);
+  ASSERT_TRUE(solver.factorize(large));
+  EXPECT_EQ(solver.active(), cholmod_available() ? LinearSolver::cholmod : LinearSolver::eigen);
+  const Eigen::VectorXd rhs = Eigen::VectorXd::LinSpaced(3000, -1.0, 2.0);
+  const Eigen::VectorXd x = solver.solve(rhs);
+  SparseSolver eigen(LinearSolver::eigen);
+  ASSERT_TRUE(eigen.factorize(large));
+  EXPECT_LT((x - eigen.solve(rhs)).norm(), 1e-12 * x.norm());
+  // Once taken, CHOLMOD stays for smaller systems too (a run's systems only grow).
+  ASSERT_TRUE(solver.factorize(small));
+  EXPECT_EQ(solver.active(), cholmod_available() ? LinearSolver::cholmod : LinearSolver::eigen);
+}
+
 TEST(SparseSolver, SingularMatrixIsNotFactorizedAndTheNextTryReusesTheAnalysis) {
   const Eigen::SparseMatrix<double> good = random_spd(30, 4, 4);
   Eigen::SparseMatrix<double> singular = good;
@@ -150,13 +168,16 @@ TEST(LevenbergMarquardt, CholmodReportsTheUnconstrainedPose) {
 }
 
 TEST(MappingConfig, LinearSolverKey) {
-  EXPECT_EQ(MappingConfig{}.global.linear_solver, LinearSolver::eigen);
+  EXPECT_EQ(MappingConfig{}.global.linear_solver, LinearSolver::automatic);
   try {
     MappingConfig::parse("global:\n  linear_solver: umfpack\n", "c.yaml");
     ADD_FAILURE();
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("global.linear_solver"), std::string::npos) << e.what();
   }
+  const MappingConfig a = MappingConfig::parse("global:\n  linear_solver: auto\n", "c.yaml");
+  EXPECT_EQ(a.global.linear_solver, LinearSolver::automatic);
+  EXPECT_EQ(MappingConfig::parse(a.to_yaml(), "dump").global.linear_solver, LinearSolver::automatic);
   if (cholmod_available()) {
     const MappingConfig c = MappingConfig::parse("global:\n  linear_solver: cholmod\n", "c.yaml");
     EXPECT_EQ(c.global.linear_solver, LinearSolver::cholmod);

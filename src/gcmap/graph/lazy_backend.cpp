@@ -2,6 +2,8 @@
 
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
+
 #include "gcmap/core/error.hpp"
 
 namespace gcmap {
@@ -48,8 +50,26 @@ void LazyBackend::linearize(std::span<Factor* const> factors, std::span<const Fa
     modelled_[f] = d[f].norm() <= threshold_;
   });
   subset_.clear();
-  for (size_t f = 0; f < n; ++f)
-    if (!modelled_[f]) subset_.push_back(f);
+  moved_.clear();
+  for (size_t f = 0; f < n; ++f) {
+    if (modelled_[f]) continue;
+    if (factors[f]->reusable() && factors[f]->kept) moved_.push_back(f);
+    else subset_.push_back(f);  // no model to stand in
+  }
+  if (max_relinearizations_ > 0 && moved_.size() > max_relinearizations_) {
+    // Over budget: those that moved most first; the others keep their models until a later call.
+    const auto further = [&](size_t a, size_t b) {
+      const double da = d[a].squaredNorm(), db = d[b].squaredNorm();
+      return da > db || (da == db && a < b);  // ties by index: the same choice on every machine
+    };
+    const auto budget = moved_.begin() + static_cast<std::ptrdiff_t>(max_relinearizations_);
+    std::nth_element(moved_.begin(), budget, moved_.end(), further);
+    for (size_t i = max_relinearizations_; i < moved_.size(); ++i) modelled_[moved_[i]] = 1;
+    deferred_ += moved_.size() - max_relinearizations_;
+    moved_.resize(max_relinearizations_);
+  }
+  subset_.insert(subset_.end(), moved_.begin(), moved_.end());
+  std::sort(subset_.begin(), subset_.end());
   sub_factors_.resize(subset_.size());
   sub_poses_.resize(subset_.size());
   sub_lin_.resize(subset_.size());

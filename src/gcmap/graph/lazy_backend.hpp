@@ -5,6 +5,8 @@
 // [rotation rad, translation m], as iSAM2's relinearizeThreshold); until then its blocks are that
 // quadratic model carried to the current poses, and its trial errors are the model's. Threshold 0
 // re-linearizes every factor whose poses moved at all: the same result as always re-linearizing.
+// A budget bounds the work of one call: at most that many moved factors are linearized anew, those
+// that moved most first, and the others stay models until a later call.
 #include <memory>
 #include <vector>
 
@@ -25,22 +27,28 @@ class LazyBackend : public LinearizationBackend {
   Device device() const override { return inner_->device(); }
   std::string name() const override { return inner_->name(); }
 
-  // Factor linearizations run and reused since construction.
+  // At most `max` moved factors linearized anew per call (0: no limit). Factors without a model
+  // (new ones) are always linearized.
+  void set_max_relinearizations(size_t max) { max_relinearizations_ = max; }
+
+  // Factor linearizations run, reused, and deferred by the budget since construction.
   size_t linearized() const { return linearized_; }
   size_t reused() const { return reused_; }
+  size_t deferred() const { return deferred_; }
 
  private:
   std::shared_ptr<LinearizationBackend> inner_;
   double threshold_;
+  size_t max_relinearizations_ = 0;
   std::vector<char> modelled_;  // per factor of the last linearize(): its kept model stands in
   std::vector<Vector12d> motion_;  // per factor: its relative-pose change since it was kept
   // Buffers for the subset handed to the inner backend.
-  std::vector<size_t> subset_;
+  std::vector<size_t> subset_, moved_;
   std::vector<Factor*> sub_factors_;
   std::vector<FactorPoses> sub_poses_;
   std::vector<FactorLinearization> sub_lin_;
   std::vector<double> sub_errors_;
-  size_t linearized_ = 0, reused_ = 0;
+  size_t linearized_ = 0, reused_ = 0, deferred_ = 0;
 };
 
 }  // namespace gcmap

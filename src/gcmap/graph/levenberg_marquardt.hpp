@@ -16,7 +16,7 @@ struct LMConfig {
   double lambda_up = 10.0;
   double relative_error_tol = 1e-6;  // stop when an accepted step lowers the error by less
   double step_tol = 1e-6;            // stop when the largest step component is smaller
-  LinearSolver linear_solver = LinearSolver::eigen;
+  LinearSolver linear_solver = LinearSolver::automatic;
 };
 
 struct LMIteration {
@@ -58,6 +58,8 @@ class LevenbergMarquardt {
   LMResult optimize(const FactorGraph& graph, Values& values, const std::set<int>& fixed = {});
 
   const LMConfig& config() const { return config_; }
+  // The sparse solver in use (what linear_solver auto chose for the last system).
+  LinearSolver active_solver() const { return solver_.active(); }
   void set_backend(std::shared_ptr<LinearizationBackend> backend) { backend_ = std::move(backend); }
 
  private:

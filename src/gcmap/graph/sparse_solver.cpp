@@ -17,6 +17,7 @@ const char* linear_solver_name(LinearSolver solver) {
   switch (solver) {
     case LinearSolver::eigen: return "eigen";
     case LinearSolver::cholmod: return "cholmod";
+    case LinearSolver::automatic: return "auto";
   }
   return "?";
 }
@@ -42,12 +43,18 @@ struct SparseSolver::Impl {
 };
 #endif
 
-SparseSolver::SparseSolver(LinearSolver kind) : kind_(kind), impl_(std::make_unique<Impl>()) {
+SparseSolver::SparseSolver(LinearSolver kind)
+    : kind_(kind), active_(kind == LinearSolver::automatic ? LinearSolver::eigen : kind), impl_(std::make_unique<Impl>()) {
+  if (kind_ == LinearSolver::cholmod && !cholmod_available())
+    throw Error("linear_solver: cholmod asked for, but this build has no CHOLMOD (SuiteSparse)");
+  if (active_ == LinearSolver::cholmod) use_cholmod();
+}
+
+void SparseSolver::use_cholmod() {
 #ifdef GCMAP_WITH_CHOLMOD
   // Silent: a damping trial that is not positive definite is an expected outcome for LM.
-  if (kind_ == LinearSolver::cholmod) impl_->solver.emplace<CholmodLlt>().cholmod().print = 0;
-#else
-  if (kind_ == LinearSolver::cholmod) throw Error("linear_solver: cholmod asked for, but this build has no CHOLMOD (SuiteSparse)");
+  impl_->solver.emplace<CholmodLlt>().cholmod().print = 0;
+  active_ = LinearSolver::cholmod;
 #endif
 }
 
@@ -63,6 +70,9 @@ bool SparseSolver::factorize(const SparseMatrix& A) {
   const bool same = A.isCompressed() && outer_.size() == cols && inner_.size() == nnz &&
                     std::equal(outer_.begin(), outer_.end(), outer) && std::equal(inner_.begin(), inner_.end(), inner);
   if (!same) {
+    if (kind_ == LinearSolver::automatic && active_ == LinearSolver::eigen && cholmod_available() &&
+        A.nonZeros() >= kAutoCholmodNonZeros)
+      use_cholmod();  // a run's systems only grow: no way back
     std::visit([&](auto& s) { s.analyzePattern(A); }, impl_->solver);
     outer_.clear();
     inner_.clear();

@@ -9,11 +9,15 @@
 namespace gcmap {
 
 // eigen: Eigen's simplicial LDL^T. cholmod: CHOLMOD's supernodal LL^T (SuiteSparse), in builds that
-// found it; its speed is the system BLAS's: with OpenBLAS 3.7-8.5x faster than eigen at 1,000
-// submaps, on par at 300 and below; with the reference BLAS slower but on dense revisited graphs
-// (bench_graph).
-enum class LinearSolver { eigen, cholmod };
+// found it; its speed is the system BLAS's. automatic ("auto", the default): eigen for systems with
+// fewer than kAutoCholmodNonZeros stored non-zeros, cholmod from there on where the build has it;
+// by size, not by timing, so that every run of a drive makes the same choice. bench_graph on 2 cores
+// with OpenBLAS, factorization cholmod/eigen: 1.3-1.8x below 100k non-zeros (one lap, 100-300
+// submaps, under 14 ms), on par at 148k (900 submaps in a line), 0.41x on city (294 submaps, 183k),
+// 0.11-0.24x at 1,000 synthetic submaps (262k-649k), 0.15x on city three times (880 submaps, 643k).
+enum class LinearSolver { eigen, cholmod, automatic };
 const char* linear_solver_name(LinearSolver solver);
+constexpr long kAutoCholmodNonZeros = 120000;
 // Whether this build has CHOLMOD.
 bool cholmod_available();
 
@@ -32,6 +36,8 @@ class SparseSolver {
   Eigen::VectorXd solve(const Eigen::VectorXd& rhs);
 
   LinearSolver kind() const { return kind_; }
+  // The solver in use: kind(), or what automatic chose by the last analysed system.
+  LinearSolver active() const { return active_; }
   // Analyses run and reused since construction; ms spent in each phase.
   int analyses() const { return analyses_; }
   int reuses() const { return reuses_; }
@@ -41,7 +47,8 @@ class SparseSolver {
 
  private:
   struct Impl;
-  LinearSolver kind_;
+  void use_cholmod();
+  LinearSolver kind_, active_;
   std::unique_ptr<Impl> impl_;
   std::vector<int> outer_, inner_;  // the analysed pattern
   int analyses_ = 0, reuses_ = 0;

@@ -30,7 +30,8 @@ constexpr std::pair<GlobalMode, const char*> kGlobalModes[] = {{GlobalMode::full
                                                                {GlobalMode::sliding_window, "sliding-window"}};
 constexpr std::pair<FactorSource, const char*> kFactorSources[] = {{FactorSource::vgicp, "vgicp"}, {FactorSource::se3, "se3"}};
 constexpr std::pair<Relinearize, const char*> kRelinearize[] = {{Relinearize::always, "always"}, {Relinearize::moved, "moved"}};
-constexpr std::pair<LinearSolver, const char*> kLinearSolvers[] = {{LinearSolver::eigen, "eigen"}, {LinearSolver::cholmod, "cholmod"}};
+constexpr std::pair<LinearSolver, const char*> kLinearSolvers[] = {
+    {LinearSolver::eigen, "eigen"}, {LinearSolver::cholmod, "cholmod"}, {LinearSolver::automatic, "auto"}};
 
 template <typename E>
 E parse_config_enum(const std::string& text, const std::string& key) {
@@ -85,6 +86,7 @@ void visit(Config& c, Visitor&& v) {
   v("global", "final_iterations", c.global.final_iterations);
   v("global", "relinearize", c.global.relinearize);
   v("global", "relinearize_threshold", c.global.relinearize_threshold);
+  v("global", "max_relinearizations", c.global.max_relinearizations);
   v("global", "linear_solver", c.global.linear_solver);
   v("global", "factor_source_points", c.global.factor_source_points);
   v("loop", "enabled", c.loop.enabled);
@@ -257,6 +259,7 @@ void MappingConfig::validate() const {
   need(global.voxel_resolution > 0, "global.voxel_resolution must be positive");
   need(global.window >= 1, "global.window must be >= 1");
   need(global.relinearize_threshold >= 0, "global.relinearize_threshold must be >= 0");
+  need(global.max_relinearizations >= 0, "global.max_relinearizations must be >= 0 (0: no limit)");
   need(global.linear_solver != LinearSolver::cholmod || cholmod_available(),
        "global.linear_solver is cholmod, but this build has no CHOLMOD (SuiteSparse)");
   need(global.max_iterations >= 1 && global.final_iterations >= 1, "global iteration limits must be >= 1");

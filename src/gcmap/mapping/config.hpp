@@ -101,7 +101,11 @@ struct GlobalMappingConfig {
   // Norm of a factor's relative-pose change [rad, m] since its linearization. GLIM's iSAM2 uses
   // 0.1; on city's first 1500 frames, 0.02 / 0.01 / 0.005 gave t_rel 8.7 / 3.5 / 0.9 % above always.
   double relinearize_threshold = 0.01;
-  LinearSolver linear_solver = LinearSolver::eigen;  // LM's sparse solve (graph/sparse_solver.hpp)
+  // Per LM iteration of an insertion, at most this many moved factors are linearized anew (those
+  // that moved most; 0: no limit), which bounds an insertion's cost where a revisit moves much of
+  // the graph; the final optimization has no limit.
+  int max_relinearizations = 0;
+  LinearSolver linear_solver = LinearSolver::automatic;  // LM's sparse solve (graph/sparse_solver.hpp)
   // Points of a submap used as the source of its matching-cost factors and overlaps (an even
   // subsample; target voxel maps keep every point). The global graph's cost is linear in it.
   int factor_source_points = 20000;

@@ -41,7 +41,9 @@ GlobalMapper::GlobalMapper(const MappingConfig& config, std::shared_ptr<Lineariz
       lazy_(config.global.relinearize == Relinearize::moved
                 ? std::make_shared<LazyBackend>(backend_, config.global.relinearize_threshold)
                 : nullptr),
-      lm_(lm_config(config.global, config.global.max_iterations, config.global.relative_error_tol), lm_backend()) {}
+      lm_(lm_config(config.global, config.global.max_iterations, config.global.relative_error_tol), lm_backend()) {
+  if (lazy_) lazy_->set_max_relinearizations(static_cast<size_t>(config.global.max_relinearizations));
+}
 
 std::shared_ptr<LinearizationBackend> GlobalMapper::lm_backend() const {
   return lazy_ ? std::static_pointer_cast<LinearizationBackend>(lazy_) : backend_;
@@ -51,6 +53,7 @@ void GlobalMapper::count_linearizations() {
   if (!lazy_) return;
   stats_.factor_linearizations = lazy_->linearized();
   stats_.factor_reuses = lazy_->reused();
+  stats_.factor_deferrals = lazy_->deferred();
 }
 
 void GlobalMapper::add_factor(GlobalFactor f) {
@@ -96,20 +99,33 @@ void GlobalMapper::insert(Submap s, LoopDetector* loops) {
   w.lap_ms();  // loop time is counted in its own statistics
   // A verified loop says the estimate was off where it closes, so the revisit factors made at that
   // estimate may sit in a wrong minimum: the loop first steers without them.
-  int iterations = 0;
-  if (loop) iterations += lm_.optimize(without_revisit_factors(), values_, {0}).iterations;
-  iterations += lm_.optimize(graph(), values_, {0}).iterations;
+  GlobalMappingStats::PerSubmap per{id + 1, 0, 0.0, 0};
+  const size_t linearized_before = lazy_ ? lazy_->linearized() : 0;
+  if (loop) optimize(without_revisit_factors(), per);
+  optimize(graph(), per);
   double opt_ms = w.lap_ms();
   if (loop) {
     // The implicit loop closure: the corrected estimate now overlaps submaps it missed before.
     const int added = connect_overlapping(id, first);
     stats_.factors.add(w.lap_ms());
-    if (added) iterations += lm_.optimize(graph(), values_, {0}).iterations;
+    if (added) optimize(graph(), per);
     opt_ms += w.lap_ms();
   }
   stats_.optimization.add(opt_ms);
   count_linearizations();
-  stats_.per_submap.push_back({id + 1, static_cast<int>(factors_.size()), opt_ms, iterations});
+  per.num_factors = static_cast<int>(factors_.size());
+  per.global_optimization_ms = opt_ms;
+  stats_.linear_solver = lm_.active_solver();
+  if (lazy_) per.linearized = lazy_->linearized() - linearized_before;
+  stats_.per_submap.push_back(per);
+}
+
+void GlobalMapper::optimize(const FactorGraph& graph, GlobalMappingStats::PerSubmap& into) {
+  const LMResult r = lm_.optimize(graph, values_, {0});
+  into.global_iterations += r.iterations;
+  into.linearize_ms += r.linearize_ms;
+  into.assemble_ms += r.assemble_ms;
+  into.solve_ms += r.solve_ms;
 }
 
 FactorGraph GlobalMapper::without_revisit_factors() const {
@@ -162,10 +178,12 @@ void GlobalMapper::optimize_final(std::optional<int> max_iterations) {
   const int iterations = max_iterations ? std::min(*max_iterations, config_.global.final_iterations) : config_.global.final_iterations;
   if (factors_.empty() || iterations <= 0) return;
   LevenbergMarquardt final_lm(lm_config(config_.global, iterations), lm_backend());
+  if (lazy_) lazy_->set_max_relinearizations(0);  // what insertions deferred is caught up here
   Stopwatch w;
   stats_.final_iterations = final_lm.optimize(graph(), values_, {0}).iterations;
   stats_.final_optimization_ms = w.ms();
   stats_.optimization.add(stats_.final_optimization_ms);
+  if (lazy_) lazy_->set_max_relinearizations(static_cast<size_t>(config_.global.max_relinearizations));
   count_linearizations();
 }
 

@@ -39,11 +39,17 @@ struct GlobalMappingStats {
     int num_submaps, num_factors;
     double global_optimization_ms;
     int global_iterations;  // LM iterations of this insertion, over all its optimize calls
+    // Where that time went (LMResult's split); factors linearized anew (relinearize: moved).
+    double linearize_ms = 0.0, assemble_ms = 0.0, solve_ms = 0.0;
+    size_t linearized = 0;
   };
   std::vector<PerSubmap> per_submap;
   double final_optimization_ms = 0.0;  // also one sample of optimization
   int final_iterations = 0;
-  size_t factor_linearizations = 0, factor_reuses = 0;  // over all LM iterations (reuses: relinearize moved)
+  // Over all LM iterations (relinearize: moved); deferrals: moved factors left to a later iteration
+  // by global.max_relinearizations.
+  size_t factor_linearizations = 0, factor_reuses = 0, factor_deferrals = 0;
+  LinearSolver linear_solver = LinearSolver::eigen;  // in use by the insertions' LM at the end
 };
 
 class GlobalMapper {
@@ -69,6 +75,8 @@ class GlobalMapper {
   FactorGraph graph() const;
   std::shared_ptr<LinearizationBackend> lm_backend() const;
   void count_linearizations();
+  // Runs LM on `graph`, adding its iterations and time split to `into`.
+  void optimize(const FactorGraph& graph, GlobalMappingStats::PerSubmap& into);
   // Matching-cost (or se3) factors from submap id to every past submap in [first, id) not yet
   // connected whose overlap reaches global.th_min; returns how many were added.
   int connect_overlapping(int id, int first);

@@ -92,6 +92,10 @@ Json stats_json(const MappingPipeline& pipeline) {
     j["factors"] = p.num_factors;
     j["global_optimization_ms"] = p.global_optimization_ms;
     j["global_iterations"] = p.global_iterations;
+    j["linearize_ms"] = p.linearize_ms;
+    j["assemble_ms"] = p.assemble_ms;
+    j["solve_ms"] = p.solve_ms;
+    j["factors_linearized"] = p.linearized;
     per.push_back(j);
   }
   stats["per_submap"] = per;
@@ -99,6 +103,8 @@ Json stats_json(const MappingPipeline& pipeline) {
   stats["final_iterations"] = ms.global.final_iterations;
   stats["factor_linearizations"] = ms.global.factor_linearizations;
   stats["factor_reuses"] = ms.global.factor_reuses;
+  stats["factor_deferrals"] = ms.global.factor_deferrals;
+  stats["linear_solver"] = linear_solver_name(ms.global.linear_solver);
   return stats;
 }
 
