@@ -8,10 +8,12 @@
 
 namespace gcmap {
 
-void deskew(PointCloud& cloud, const Vector6d& velocity) {
+void deskew(PointCloud& cloud, const Vector6d& velocity) { deskew(cloud, velocity, Vector6d::Zero()); }
+
+void deskew(PointCloud& cloud, const Vector6d& velocity, const Vector6d& acceleration) {
   if (!cloud.has_times()) return;
   if (cloud.times.size() != cloud.size()) throw Error("deskew: times and points differ in number");
-  if (!velocity.allFinite()) throw Error("deskew: non-finite velocity");
+  if (!velocity.allFinite() || !acceleration.allFinite()) throw Error("deskew: non-finite velocity");
   const bool covs = cloud.has_covs();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, cloud.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
     // Drivers write many points with one time (a column of a spinning sensor): reuse its pose.
@@ -21,7 +23,8 @@ void deskew(PointCloud& cloud, const Vector6d& velocity) {
     for (size_t i = r.begin(); i != r.end(); ++i) {
       if (cloud.times[i] != last_t) {
         last_t = cloud.times[i];
-        const Eigen::Isometry3d T_0_t = se3_exp(double(last_t) * velocity);
+        const double tt = last_t;
+        const Eigen::Isometry3d T_0_t = se3_exp(tt * velocity + 0.5 * tt * tt * acceleration);
         R = T_0_t.linear().cast<float>();
         t = T_0_t.translation().cast<float>();
       }

@@ -33,6 +33,19 @@ class SweepOdometry {
  private:
   SweepEstimate track_deskewed(const std::shared_ptr<PointCloud>& cloud, double stamp, double dt);
 
+  // A registered mean velocity [omega; rho] between two instants, and the middle of them.
+  struct MeanVelocity {
+    Vector6d velocity = Vector6d::Zero();
+    double time = 0.0;
+  };
+  // The motion over a sweep from its stamp: velocity there, changing by acceleration per second.
+  struct SweepMotion {
+    Vector6d velocity = Vector6d::Zero(), acceleration = Vector6d::Zero();
+    Vector6d at(double t) const { return t * velocity + 0.5 * t * t * acceleration; }  // log T_stamp_t
+  };
+  // `mean` with the previous sweep's mean velocity: linear in time (constant without one).
+  SweepMotion sweep_motion(const MeanVelocity& mean, double stamp) const;
+
   // The first sweep entered the model as it came; with the first motion registered (smeared
   // against smeared, which cancels), it is deskewed and the model started again from it.
   std::shared_ptr<const PointCloud> restart_from_first(const Vector6d& velocity);
@@ -58,6 +71,7 @@ class SweepOdometry {
     double stamp = 0.0;
   };
   SweepReference reference_;
+  std::optional<MeanVelocity> previous_mean_;  // the last deskewed sweep's
 };
 
 }  // namespace gcmap
