@@ -82,8 +82,26 @@ TEST(Deskew, FollowsAYawRateThatGrowsOverTheSweep) {
   PointCloud constant = measured;
   deskew(constant, Vector6d(v0 + 0.05 * a));
   EXPECT_GT(max_error(constant, scene), 0.3);
-  std::printf("yaw rate growing over the sweep: %.4f m (linear velocity), %.3f m (constant)\n", max_error(linear, scene),
-              max_error(constant, scene));
+  // The same motion as a quadratic around the middle of the sweep (how a sweep is deskewed again
+  // between the registered poses on both sides of it) follows it closer.
+  PointCloud mid = measured;
+  deskew(mid, Vector6d(v0 + 0.05 * a), a, 0.05);
+  EXPECT_LT(max_error(mid, scene), 0.006);
+  std::printf("yaw rate growing over the sweep: %.4f m (linear velocity), %.4f m (around the middle), %.3f m (constant)\n",
+              max_error(linear, scene), max_error(mid, scene), max_error(constant, scene));
+}
+
+TEST(Deskew, AConstantVelocityDoesNotDependOnTheAnchor) {
+  Vector6d v;
+  v << 0.1, -0.05, 0.6, 15.0, 0.8, -0.3;
+  Sweep s = make_sweep(v, 4);
+  for (const double anchor : {0.0, 0.03, 0.1, -0.2}) {
+    PointCloud c = s.measured;
+    deskew(c, v, Vector6d::Zero(), anchor);
+    EXPECT_LT(max_error(c, s.scene), 1e-4) << anchor;
+  }
+  PointCloud c = s.measured;
+  EXPECT_THROW(deskew(c, v, Vector6d::Zero(), std::nan("")), Error);
 }
 
 TEST(Deskew, RotatesCovariancesAndRejectsBadInput) {

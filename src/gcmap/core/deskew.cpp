@@ -10,11 +10,17 @@ namespace gcmap {
 
 void deskew(PointCloud& cloud, const Vector6d& velocity) { deskew(cloud, velocity, Vector6d::Zero()); }
 
-void deskew(PointCloud& cloud, const Vector6d& velocity, const Vector6d& acceleration) {
+void deskew(PointCloud& cloud, const Vector6d& velocity, const Vector6d& acceleration, double anchor) {
   if (!cloud.has_times()) return;
   if (cloud.times.size() != cloud.size()) throw Error("deskew: times and points differ in number");
-  if (!velocity.allFinite() || !acceleration.allFinite()) throw Error("deskew: non-finite velocity");
+  if (!velocity.allFinite() || !acceleration.allFinite() || !std::isfinite(anchor))
+    throw Error("deskew: non-finite velocity");
   const bool covs = cloud.has_covs();
+  const auto T_anchor = [&](double t) {
+    const double u = t - anchor;
+    return se3_exp(u * velocity + 0.5 * u * u * acceleration);
+  };
+  const Eigen::Isometry3d T_0_anchor = T_anchor(0.0).inverse();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, cloud.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
     // Drivers write many points with one time (a column of a spinning sensor): reuse its pose.
     float last_t = std::nanf("");
@@ -23,8 +29,7 @@ void deskew(PointCloud& cloud, const Vector6d& velocity, const Vector6d& acceler
     for (size_t i = r.begin(); i != r.end(); ++i) {
       if (cloud.times[i] != last_t) {
         last_t = cloud.times[i];
-        const double tt = last_t;
-        const Eigen::Isometry3d T_0_t = se3_exp(tt * velocity + 0.5 * tt * tt * acceleration);
+        const Eigen::Isometry3d T_0_t = T_0_anchor * T_anchor(last_t);
         R = T_0_t.linear().cast<float>();
         t = T_0_t.translation().cast<float>();
       }

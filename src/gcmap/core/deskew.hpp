@@ -13,9 +13,11 @@ namespace gcmap {
 // `velocity` [omega; rho] (rad/s, m/s) in the sensor frame: T_0_t = exp(t * velocity).
 void deskew(PointCloud& cloud, const Vector6d& velocity);
 
-// The velocity changing linearly over the sweep: velocity at time 0 plus t * acceleration,
-// T_0_t = exp(t * velocity + t^2 / 2 * acceleration).
-void deskew(PointCloud& cloud, const Vector6d& velocity, const Vector6d& acceleration);
+// The velocity changing linearly over the sweep, as a quadratic in the tangent space at the instant
+// `anchor` (s): T_anchor_t = exp(u * velocity + u^2 / 2 * acceleration) with u = t - anchor, and
+// T_0_t = T_anchor_0^-1 T_anchor_t. At anchor 0, velocity is the one at time 0. (A curve fitted
+// around a registered pose at the sweep's mean point time keeps that pose exact.)
+void deskew(PointCloud& cloud, const Vector6d& velocity, const Vector6d& acceleration, double anchor = 0.0);
 
 // T_begin_end: the sensor pose at time `sweep_duration` in the frame at time 0 (for example the
 // motion predicted between two scans, scaled to the sweep). No-op without times.

@@ -53,6 +53,7 @@ void visit(Config& c, Visitor&& v) {
   v("preprocess", "kitti_vertical_correction", c.preprocess.kitti_vertical_correction);
   v("preprocess", "remove_dynamic_labels", c.preprocess.remove_dynamic_labels);
   v("preprocess", "deskew", c.preprocess.deskew);
+  v("preprocess", "redeskew", c.preprocess.redeskew);
   v("preprocess", "deskew_from_azimuth", c.preprocess.deskew_from_azimuth);
   v("preprocess", "sweep_period", c.preprocess.sweep_period);
   v("preprocess", "sweep_start_deg", c.preprocess.sweep_start_deg);

@@ -41,8 +41,12 @@ struct PreprocessConfig {
   std::string elevation_calibration;
   bool kitti_vertical_correction = true;  // 0.22 deg intrinsic correction, KITTI layouts only
   bool remove_dynamic_labels = true;      // SemanticKITTI moving classes, when labels/ exists
-  // Motion compensation of scans with per-point times, by the odometry's constant-velocity motion.
+  // Motion compensation of scans with per-point times, by the motion the odometry registers over
+  // the sweep (a velocity that changes linearly).
   bool deskew = true;
+  // Each sweep deskewed again once the next one is registered, by the quadratic through the poses
+  // on both sides of it (interpolated, no longer extrapolated), for the map and the odometry's model.
+  bool redeskew = true;
   // Scans without per-point times from a spinning sensor: times from each point's azimuth
   // atan2(y, x), t = sweep_period * (the fraction of the turn since sweep_start_deg). The defaults
   // follow the point order of KITTI's HDL-64 files: each ring starts facing forward (+x, 0 deg) and

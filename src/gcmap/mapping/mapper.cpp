@@ -36,6 +36,13 @@ FrameStatus Mapper::add_frame(int frame, const std::shared_ptr<const PointCloud>
   return r.status;
 }
 
+void Mapper::revise_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom) {
+  if (frame < 0 || frame >= static_cast<int>(frames_.size())) throw Error("Mapper: revise_frame of an unknown frame");
+  if (frames_[frame].submap >= 0) return;  // closed: its place in the submap is fixed
+  frames_[frame].T_odom = T_odom;
+  local_.revise(frame, cloud, T_odom);
+}
+
 void Mapper::insert(Submap submap) {
   for (size_t k = 0; k < submap.keyframes.size(); ++k) {
     frames_[submap.keyframes[k]].submap = submap.id;

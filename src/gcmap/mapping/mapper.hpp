@@ -24,9 +24,9 @@ class Mapper {
   // Feeds a preprocessed frame (with covariances) and its odometry pose. Frames come in order,
   // numbered from 0; unusable frames (nullptr or too few points) are placed by odometry only.
   FrameStatus add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom);
-  // A keyframe of the open submap gets another cloud (its sweep deskewed once the motion is
-  // known); false when the frame is no longer open or was no keyframe.
-  bool replace_frame_cloud(int frame, const std::shared_ptr<const PointCloud>& cloud) { return local_.replace_cloud(frame, cloud); }
+  // A frame's sweep deskewed again (SweepRevision), before the next frame is added: its odometry
+  // pose, and its cloud when it is a keyframe.
+  void revise_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom);
   // Closes the open submap and runs the final global optimization (at most max_final_iterations
   // when given; 0 skips it).
   void finish(std::optional<int> max_final_iterations = std::nullopt);

@@ -54,6 +54,18 @@ void Odometry::add_keyframe(const std::shared_ptr<const PointCloud>& frame, cons
   model_->finalize();
 }
 
+bool Odometry::revise_keyframe(const PointCloud& old, const std::shared_ptr<const PointCloud>& frame,
+                               const Eigen::Isometry3d& T) {
+  const auto it = std::find_if(keyframes_.begin(), keyframes_.end(), [&](const auto& k) { return k.second.get() == &old; });
+  if (it == keyframes_.end()) return false;
+  if (model_.use_count() > 1) model_ = std::make_shared<GaussianVoxelMap>(*model_);
+  model_->remove(*it->second, it->first);
+  *it = {T, frame};
+  model_->insert(*frame, T);
+  model_->finalize();
+  return true;
+}
+
 Eigen::Isometry3d Odometry::track(const std::shared_ptr<const PointCloud>& frame, std::optional<double> stamp, bool* ok) {
   const bool usable = frame && frame->size() >= 100 && frame->has_covs();
   if (ok) *ok = usable;

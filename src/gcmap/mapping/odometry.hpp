@@ -50,6 +50,9 @@ class Odometry {
   Eigen::Isometry3d predict(std::optional<double> stamp = std::nullopt) const;
   // Accepts an externally given pose (e.g. --initial-trajectory) to keep the motion model going.
   void set_pose(const Eigen::Isometry3d& T, std::optional<double> stamp = std::nullopt);
+  // A keyframe of the model (`old`, the cloud it was accepted with) replaced by another cloud at
+  // pose T (the sweep deskewed again); false when `old` is no keyframe (any more).
+  bool revise_keyframe(const PointCloud& old, const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T);
 
  private:
   void add_keyframe(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T);

@@ -119,7 +119,10 @@ Frame MappingPipeline::add_prepared(PreparedScan scan, std::optional<Eigen::Isom
   f.T_odom = e.T_world_frame;
   f.deskewed = e.deskewed;
   f.odometry_failed = e.failed;
-  if (e.first_deskewed) mapper_.replace_frame_cloud(e.first_frame, e.first_deskewed);
+  if (e.revised) {
+    mapper_.revise_frame(e.revised->frame, e.revised->cloud, e.revised->T_world_frame);
+    odometry_poses_[e.revised->frame] = e.revised->T_world_frame;
+  }
   if (f.odometry_failed) {
     spdlog::warn("scan {}: odometry failed (too few matches, or far from the prediction with little overlap), "
                  "placed by the prediction",

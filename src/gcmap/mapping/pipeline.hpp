@@ -100,6 +100,8 @@ class MappingPipeline {
   const std::vector<double>& stamps() const { return stamps_; }
   const std::vector<FrameStatus>& statuses() const { return statuses_; }
   std::vector<Eigen::Isometry3d> trajectory() const { return mapper_.trajectory(); }
+  // The odometry's poses; a deskewed sweep's is revised once the next frame is registered (see
+  // preprocess.redeskew), so it may differ from the T_odom its Frame returned.
   const std::vector<Eigen::Isometry3d>& odometry() const { return odometry_poses_; }
   const std::vector<Submap>& submaps() const { return mapper_.submaps(); }
   const Mapper& mapper() const { return mapper_; }

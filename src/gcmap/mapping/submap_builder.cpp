@@ -36,10 +36,10 @@ SubmapBuilder::Keyframe SubmapBuilder::make_keyframe(int frame, const Eigen::Iso
   return {frame, T_odom, cloud, std::move(voxels), std::move(descriptor)};
 }
 
-bool SubmapBuilder::replace_cloud(int frame, const std::shared_ptr<const PointCloud>& cloud) {
+bool SubmapBuilder::revise(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom) {
   for (Keyframe& k : open_)
     if (k.frame == frame && cloud && cloud->size() >= 100) {
-      k = make_keyframe(frame, k.T_odom, cloud);
+      k = make_keyframe(frame, T_odom, cloud);
       return true;
     }
   return false;
@@ -48,6 +48,7 @@ bool SubmapBuilder::replace_cloud(int frame, const std::shared_ptr<const PointCl
 SubmapBuilder::Result SubmapBuilder::add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud,
                                                const Eigen::Isometry3d& T_odom) {
   Result r;
+  if (complete_) r.closed = close();
   r.anchor = last_keyframe_;
   if (!cloud || cloud->size() < 100) return r;
   if (!open_.empty()) {
@@ -67,7 +68,7 @@ SubmapBuilder::Result SubmapBuilder::add_frame(int frame, const std::shared_ptr<
   if (open_.size() >= 2) {
     const Keyframe& first = open_.front();
     const double ov = overlap(*cloud, *first.voxels, first.T_odom.inverse() * T_odom);
-    if (ov < config_.local.th_min || static_cast<int>(open_.size()) >= config_.local.max_keyframes) r.closed = close();
+    complete_ = ov < config_.local.th_min || static_cast<int>(open_.size()) >= config_.local.max_keyframes;
   }
   return r;
 }
@@ -99,6 +100,7 @@ std::vector<Eigen::Isometry3d> SubmapBuilder::optimize_keyframes(const Eigen::Is
 }
 
 std::optional<Submap> SubmapBuilder::close() {
+  complete_ = false;
   if (open_.empty()) return std::nullopt;
   Submap s;
   s.id = next_id_++;

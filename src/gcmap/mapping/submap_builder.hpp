@@ -29,13 +29,14 @@ class SubmapBuilder {
     int anchor = -1;                // the keyframe (frame index) this frame is placed from; -1: none yet
     std::optional<Submap> closed;   // a submap this frame completed
   };
-  // Frames in order; a null or small cloud is unusable.
+  // Frames in order; a null or small cloud is unusable. A submap that a keyframe completes closes
+  // with the next frame (or close()), so that its last keyframe can still be revised.
   Result add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom);
   // Closes the open submap, if any.
   std::optional<Submap> close();
-  // Replaces the cloud of a keyframe of the open submap (e.g. deskewed once the motion is known);
-  // false when the frame is no open keyframe.
-  bool replace_cloud(int frame, const std::shared_ptr<const PointCloud>& cloud);
+  // Replaces the cloud and odometry pose of a keyframe of the open submap (its sweep deskewed
+  // again, see SweepRevision); false when the frame is no open keyframe.
+  bool revise(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom);
 
   bool has_open_keyframes() const { return !open_.empty(); }
   const LocalMappingStats& stats() const { return stats_; }
@@ -56,6 +57,7 @@ class SubmapBuilder {
   MappingConfig config_;
   std::shared_ptr<LinearizationBackend> backend_;
   std::vector<Keyframe> open_;
+  bool complete_ = false;  // the open submap closes with the next frame
   int next_id_ = 0;
   int last_keyframe_ = -1;
   LocalMappingStats stats_;

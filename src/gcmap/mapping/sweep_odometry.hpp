@@ -9,14 +9,21 @@
 
 namespace gcmap {
 
+// An earlier frame's sweep deskewed again, now that more of the motion is known; the mapper should
+// take its cloud and pose instead (Mapper::revise_frame).
+struct SweepRevision {
+  int frame = -1;  // its index among the frames tracked
+  std::shared_ptr<const PointCloud> cloud;
+  Eigen::Isometry3d T_world_frame = Eigen::Isometry3d::Identity();
+};
+
 struct SweepEstimate {
   Eigen::Isometry3d T_world_frame = Eigen::Isometry3d::Identity();  // at the scan stamp
   bool deskewed = false;
   bool failed = false;  // registration rejected (see Odometry::estimate): placed by the prediction
-  // Once, at the second frame: the first sweep, deskewed now that the motion is known (it entered
-  // the odometry's model smeared). The mapper should take it instead (Mapper::replace_frame_cloud).
-  std::shared_ptr<const PointCloud> first_deskewed;
-  int first_frame = -1;  // its index among the frames tracked
+  // At the second frame, the first sweep (it entered the odometry's model smeared); later, the
+  // previous sweep, once this one is registered (see SweepOdometry::revise_previous).
+  std::optional<SweepRevision> revised;
 };
 
 class SweepOdometry {
@@ -38,21 +45,37 @@ class SweepOdometry {
     Vector6d velocity = Vector6d::Zero();
     double time = 0.0;
   };
-  // The motion over a sweep from its stamp: velocity there, changing by acceleration per second.
+  // The motion over a sweep: velocity at `anchor` (s after the stamp), changing by acceleration per
+  // second, a quadratic in the tangent space there (see deskew).
   struct SweepMotion {
     Vector6d velocity = Vector6d::Zero(), acceleration = Vector6d::Zero();
-    Vector6d at(double t) const { return t * velocity + 0.5 * t * t * acceleration; }  // log T_stamp_t
+    double anchor = 0.0;
+    Eigen::Isometry3d T_anchor(double t) const {
+      const double u = t - anchor;
+      return se3_exp(u * velocity + 0.5 * u * u * acceleration);
+    }
+    Eigen::Isometry3d T_stamp(double t) const { return T_anchor(0.0).inverse() * T_anchor(t); }
   };
-  // `mean` with the previous sweep's mean velocity: linear in time (constant without one).
+  // `mean` with the previous sweep's mean velocity: linear in time (constant without one), at the
+  // stamp (anchored at the mean point time instead, loop t_rel was the same).
   SweepMotion sweep_motion(const MeanVelocity& mean, double stamp) const;
 
   // The first sweep entered the model as it came; with the first motion registered (smeared
   // against smeared, which cancels), it is deskewed and the model started again from it.
   std::shared_ptr<const PointCloud> restart_from_first(const Vector6d& velocity);
 
+  // A registered sweep: its pose at the mean time of its points (what registration fixes best).
+  struct Registered {
+    Eigen::Isometry3d T_world_mean = Eigen::Isometry3d::Identity();
+    double mean_time = 0.0;  // absolute
+  };
+  // With the poses of the sweeps before and after it registered, the previous sweep is deskewed
+  // again by the quadratic through the three (its motion interpolated, no longer extrapolated).
+  std::optional<SweepRevision> revise_previous(const Registered& next);
+
   OdometryConfig config_;
   std::shared_ptr<LinearizationBackend> backend_;
-  bool deskew_;
+  bool deskew_, redeskew_;
   Odometry odometry_;
   int frames_ = 0;
   struct FirstSweep {
@@ -72,6 +95,17 @@ class SweepOdometry {
   };
   SweepReference reference_;
   std::optional<MeanVelocity> previous_mean_;  // the last deskewed sweep's
+  // The last two registered sweeps in a row, the later one still revisable (as it came, its
+  // deskewed cloud, stamp and frame index); reset by a frame registered otherwise.
+  std::optional<Registered> before_previous_;
+  struct Revisable {
+    Registered registered;
+    PointCloud raw;
+    std::shared_ptr<const PointCloud> cloud;
+    double stamp = 0.0;
+    int frame = 0;
+  };
+  std::optional<Revisable> previous_;
 };
 
 }  // namespace gcmap
