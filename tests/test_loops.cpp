@@ -2,6 +2,7 @@
 // loop constraint, on scans of the simulator's small scenario (one block loop, start revisited).
 #include <tbb/parallel_for.h>
 
+#include "gcmap/core/error.hpp"
 #include "gcmap/core/gaussian_voxel_map.hpp"
 #include "gcmap/graph/levenberg_marquardt.hpp"
 #include "gcmap/eval/trajectory_metrics.hpp"
@@ -126,6 +127,30 @@ TEST_F(LoopScenario, ShiftedTukeyLoopNeutralizesAPlantedFalseLoopAndLetsGoOfATru
   const RobustKernel kernel = RobustKernel::shifted_tukey(config.tukey_width, config.tukey_offset);
   EXPECT_GT(kernel.weight(3.0 / config.translation_sigma), 0.2);
   EXPECT_EQ(kernel.weight(10.0 / config.translation_sigma), 1.0);
+}
+
+TEST_F(LoopScenario, ACompletedSubmapClosesWithTheNextFrameSoItsLastKeyframeCanBeRevised) {
+  MappingConfig cfg;
+  cfg.local.max_keyframes = 3;
+  cfg.loop.enabled = false;
+  Mapper mapper(cfg);
+  int f = 0, keyframes = 0, last = -1;
+  std::shared_ptr<const PointCloud> last_cloud;
+  for (; keyframes < 3 && f < 40; ++f) {
+    auto cloud = std::make_shared<const PointCloud>(scan(f));
+    if (mapper.add_frame(f, cloud, relative(0, f)) != FrameStatus::keyframe) continue;
+    ++keyframes, last = f, last_cloud = cloud;
+  }
+  ASSERT_EQ(keyframes, 3);
+  EXPECT_TRUE(mapper.submaps().empty());  // complete, still open
+  const Eigen::Isometry3d revised = relative(0, last) * Eigen::Isometry3d(Eigen::Translation3d(0.01, 0.0, 0.0));
+  EXPECT_TRUE(mapper.revise_frame(last, last_cloud, revised));
+  mapper.add_frame(f, std::make_shared<const PointCloud>(scan(f)), relative(0, f));
+  ASSERT_EQ(mapper.submaps().size(), 1u);
+  EXPECT_EQ(mapper.submaps()[0].keyframes, (std::vector<int>{0, mapper.submaps()[0].keyframes[1], last}));
+  // Closed: the keyframe keeps its place in the submap.
+  EXPECT_FALSE(mapper.revise_frame(last, last_cloud, relative(0, last)));
+  EXPECT_THROW(mapper.revise_frame(f + 1, last_cloud, revised), Error);
 }
 
 TEST_F(LoopScenario, MapperBridgesAGapOfDroppedScans) {

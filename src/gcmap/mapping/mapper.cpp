@@ -36,11 +36,11 @@ FrameStatus Mapper::add_frame(int frame, const std::shared_ptr<const PointCloud>
   return r.status;
 }
 
-void Mapper::revise_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom) {
+bool Mapper::revise_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom) {
   if (frame < 0 || frame >= static_cast<int>(frames_.size())) throw Error("Mapper: revise_frame of an unknown frame");
-  if (frames_[frame].submap >= 0) return;  // closed: its place in the submap is fixed
+  if (frames_[frame].submap >= 0) return false;
   frames_[frame].T_odom = T_odom;
-  local_.revise(frame, cloud, T_odom);
+  return local_.revise(frame, cloud, T_odom);
 }
 
 void Mapper::insert(Submap submap) {

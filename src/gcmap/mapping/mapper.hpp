@@ -25,8 +25,9 @@ class Mapper {
   // numbered from 0; unusable frames (nullptr or too few points) are placed by odometry only.
   FrameStatus add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom);
   // A frame's sweep deskewed again (SweepRevision), before the next frame is added: its odometry
-  // pose, and its cloud when it is a keyframe.
-  void revise_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom);
+  // pose, and its cloud when it is a keyframe. True when the cloud was taken; a frame whose submap
+  // has closed keeps its place.
+  bool revise_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom);
   // Closes the open submap and runs the final global optimization (at most max_final_iterations
   // when given; 0 skips it).
   void finish(std::optional<int> max_final_iterations = std::nullopt);
