@@ -1,5 +1,7 @@
 #include "gcmap/mapping/sweep_odometry.hpp"
 
+#include <algorithm>
+
 #include "gcmap/core/deskew.hpp"
 #include "gcmap/core/se3.hpp"
 
@@ -62,7 +64,10 @@ std::shared_ptr<const PointCloud> SweepOdometry::restart_from_first(const Vector
   odometry_.accept(first, first_->T, first_->stamp);
   const double t_mean = mean_time(*first);
   reference_ = {first_->T * se3_exp(t_mean * velocity), first_->stamp + t_mean};
-  previous_ = Revisable{{reference_.pose, reference_.stamp}, std::move(first_->raw), first, first_->stamp, first_->frame};
+  SweepMotion motion;
+  motion.velocity = velocity;
+  previous_ = Revisable{{reference_.pose, reference_.stamp}, std::move(first_->raw), first, first_->stamp, first_->frame,
+                        motion, first_->T};
   return first;
 }
 
@@ -80,11 +85,22 @@ std::optional<SweepRevision> SweepOdometry::revise_previous(const Registered& ne
   m.velocity = (0.5 * u2 * u2 * x0 - 0.5 * u0 * u0 * x2) / det;
   m.acceleration = (u0 * x2 - u2 * x0) / det;
   m.anchor = p.registered.mean_time - p.stamp;
+  const Eigen::Isometry3d T_world_frame = p.registered.T_world_mean * m.T_anchor(0.0);
+  // A revision that moves no point at 50 m by a centimetre is left out: on the calibrated city it
+  // only added registration noise (t_rel 0.0637 % revising every sweep, 0.0625 % with this, 0.0627 %
+  // never) and 2 ms per frame; on loop at 15 m/s it changed nothing.
+  double shift = 0.0;
+  const float last = *std::max_element(p.raw.times.begin(), p.raw.times.end());
+  for (const double t : {0.0, m.anchor, static_cast<double>(last)}) {
+    const Eigen::Isometry3d D = (p.T_world_frame * p.motion.T_stamp(t)).inverse() * T_world_frame * m.T_stamp(t);
+    shift = std::max(shift, D.translation().norm() + 50.0 * rotation_angle(D));
+  }
+  if (shift < 0.01) return std::nullopt;
   auto cloud = std::make_shared<PointCloud>(p.raw);
   deskew(*cloud, m.velocity, m.acceleration, m.anchor);
   // The frame's pose moves onto the curve as well: the keyframe's starting point in the local
   // optimization (kept at the pose it was tracked at, loop t_rel was 0.0114 % against 0.0099 %).
-  const SweepRevision r{p.frame, cloud, p.registered.T_world_mean * m.T_anchor(0.0)};
+  const SweepRevision r{p.frame, cloud, T_world_frame};
   odometry_.revise_keyframe(*p.cloud, cloud, r.T_world_frame);
   return r;
 }
@@ -133,7 +149,7 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
     if (auto r = revise_previous(now)) e.revised = std::move(r);
     before_previous_.reset();
     if (previous_) before_previous_ = previous_->registered;
-    previous_ = Revisable{now, std::move(raw), cloud, stamp, frames_};
+    previous_ = Revisable{now, std::move(raw), cloud, stamp, frames_, m, T};
   }
   e.T_world_frame = T;
   e.deskewed = true;

@@ -104,6 +104,8 @@ class SweepOdometry {
     std::shared_ptr<const PointCloud> cloud;
     double stamp = 0.0;
     int frame = 0;
+    SweepMotion motion;  // what it was deskewed with, at this pose
+    Eigen::Isometry3d T_world_frame = Eigen::Isometry3d::Identity();
   };
   std::optional<Revisable> previous_;
 };
