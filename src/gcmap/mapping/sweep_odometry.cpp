@@ -37,20 +37,18 @@ SweepEstimate SweepOdometry::track(const std::shared_ptr<PointCloud>& cloud, dou
     }
     odometry_.set_pose(*T_odom, stamp);
     reference_ = {*T_odom, stamp};
-    before_previous_.reset(), previous_.reset();
     e.T_world_frame = *T_odom;
   } else if (!timed || !odometry_.has_model() || cloud->size() < 100 || !cloud->has_covs()) {
     const bool starts_model = !odometry_.has_model();
     e.T_world_frame = odometry_.track(cloud, stamp);
     e.failed = odometry_.last_failed();
     reference_ = {e.T_world_frame, stamp};
-    before_previous_.reset(), previous_.reset();
     if (starts_model && odometry_.has_model() && deskew_ && cloud->has_times())
       first_ = FirstSweep{*cloud, stamp, e.T_world_frame, frames_};
   } else {
     e = track_deskewed(cloud, stamp, dt);
   }
-  if (!e.deskewed || T_odom) previous_mean_.reset();
+  if (!e.deskewed || T_odom) previous_mean_.reset(), before_previous_.reset(), previous_.reset();
   if (first_ && frames_ > first_->frame) first_.reset();  // only the next frame restarts
   last_.emplace(e.T_world_frame, stamp);
   ++frames_;
@@ -66,26 +64,25 @@ std::shared_ptr<const PointCloud> SweepOdometry::restart_from_first(const Vector
   reference_ = {first_->T * se3_exp(t_mean * velocity), first_->stamp + t_mean};
   SweepMotion motion;
   motion.velocity = velocity;
-  previous_ = Revisable{{reference_.pose, reference_.stamp}, std::move(first_->raw), first, first_->stamp, first_->frame,
-                        motion, first_->T};
+  previous_ = Revisable{reference_, std::move(first_->raw), first, first_->stamp, first_->frame, motion, first_->T};
   return first;
 }
 
-std::optional<SweepRevision> SweepOdometry::revise_previous(const Registered& next) {
+std::optional<SweepRevision> SweepOdometry::revise_previous(const SweepReference& next) {
   if (!redeskew_ || !before_previous_ || !previous_) return std::nullopt;
   const Revisable& p = *previous_;
   // The quadratic x(u) = u v + u^2/2 a in the tangent space at the previous sweep's registered
   // pose (u = 0), through the sweeps before (u0) and after (u2) it.
-  const double u0 = before_previous_->mean_time - p.registered.mean_time, u2 = next.mean_time - p.registered.mean_time;
+  const double u0 = before_previous_->stamp - p.reference.stamp, u2 = next.stamp - p.reference.stamp;
   if (u0 > -0.025 || u2 < 0.025) return std::nullopt;  // too close: it would amplify their noise
-  const Eigen::Isometry3d T_mean_world = p.registered.T_world_mean.inverse();
-  const Vector6d x0 = se3_log(T_mean_world * before_previous_->T_world_mean), x2 = se3_log(T_mean_world * next.T_world_mean);
+  const Eigen::Isometry3d T_mean_world = p.reference.pose.inverse();
+  const Vector6d x0 = se3_log(T_mean_world * before_previous_->pose), x2 = se3_log(T_mean_world * next.pose);
   const double det = 0.5 * u0 * u2 * (u2 - u0);
   SweepMotion m;
   m.velocity = (0.5 * u2 * u2 * x0 - 0.5 * u0 * u0 * x2) / det;
   m.acceleration = (u0 * x2 - u2 * x0) / det;
-  m.anchor = p.registered.mean_time - p.stamp;
-  const Eigen::Isometry3d T_world_frame = p.registered.T_world_mean * m.T_anchor(0.0);
+  m.anchor = p.reference.stamp - p.stamp;
+  const Eigen::Isometry3d T_world_frame = p.reference.pose * m.T_anchor(0.0);
   // A revision that moves no point at 50 m by a centimetre is left out: on the calibrated city it
   // only added registration noise (t_rel 0.0637 % revising every sweep, 0.0625 % with this, 0.0627 %
   // never) and 2 ms per frame; on loop at 15 m/s it changed nothing.
@@ -145,11 +142,10 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
     previous_mean_.reset(), before_previous_.reset(), previous_.reset();
   } else {
     previous_mean_ = mean;
-    const Registered now{reference_.pose, reference_.stamp};
-    if (auto r = revise_previous(now)) e.revised = std::move(r);
+    if (auto r = revise_previous(reference_)) e.revised = std::move(r);
     before_previous_.reset();
-    if (previous_) before_previous_ = previous_->registered;
-    previous_ = Revisable{now, std::move(raw), cloud, stamp, frames_, m, T};
+    if (previous_) before_previous_ = previous_->reference;
+    previous_ = Revisable{reference_, std::move(raw), cloud, stamp, frames_, m, T};
   }
   e.T_world_frame = T;
   e.deskewed = true;

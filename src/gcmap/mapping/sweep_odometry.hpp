@@ -64,14 +64,15 @@ class SweepOdometry {
   // against smeared, which cancels), it is deskewed and the model started again from it.
   std::shared_ptr<const PointCloud> restart_from_first(const Vector6d& velocity);
 
-  // A registered sweep: its pose at the mean time of its points (what registration fixes best).
-  struct Registered {
-    Eigen::Isometry3d T_world_mean = Eigen::Isometry3d::Identity();
-    double mean_time = 0.0;  // absolute
+  // A frame's pose at the instant its registration fixes best (see track_deskewed): the mean point
+  // time of a deskewed sweep, else the scan stamp.
+  struct SweepReference {
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    double stamp = 0.0;  // absolute
   };
-  // With the poses of the sweeps before and after it registered, the previous sweep is deskewed
-  // again by the quadratic through the three (its motion interpolated, no longer extrapolated).
-  std::optional<SweepRevision> revise_previous(const Registered& next);
+  // With the sweeps before and after it registered, the previous sweep is deskewed again by the
+  // quadratic through the three references (its motion interpolated, no longer extrapolated).
+  std::optional<SweepRevision> revise_previous(const SweepReference& next);
 
   OdometryConfig config_;
   std::shared_ptr<LinearizationBackend> backend_;
@@ -87,19 +88,13 @@ class SweepOdometry {
   std::optional<FirstSweep> first_;  // until the second frame is registered
   // The previous frame's pose and stamp.
   std::optional<std::pair<Eigen::Isometry3d, double>> last_;
-  // The last frame's pose at the instant its registration fixes best (see track_deskewed): the
-  // mean point time of a deskewed sweep, else the scan stamp.
-  struct SweepReference {
-    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-    double stamp = 0.0;
-  };
-  SweepReference reference_;
+  SweepReference reference_;  // the last frame's
   std::optional<MeanVelocity> previous_mean_;  // the last deskewed sweep's
   // The last two registered sweeps in a row, the later one still revisable (as it came, its
   // deskewed cloud, stamp and frame index); reset by a frame registered otherwise.
-  std::optional<Registered> before_previous_;
+  std::optional<SweepReference> before_previous_;
   struct Revisable {
-    Registered registered;
+    SweepReference reference;
     PointCloud raw;
     std::shared_ptr<const PointCloud> cloud;
     double stamp = 0.0;
