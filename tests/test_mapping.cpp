@@ -218,6 +218,12 @@ TEST(Mapping, ConfigRoundTripsThroughYaml) {
   EXPECT_EQ(back.global.mode, GlobalMode::sliding_window);
   EXPECT_TRUE(back.output.pcd);
   EXPECT_EQ(back.to_yaml(), c.to_yaml());
+  // A string survives whatever it holds: YAML syntax, quotes, a line break, a tab, a control byte
+  // (in single quotes a trailing line break came back as a space; found by fuzz_config).
+  c.preprocess.elevation_calibration = "a: 'b' \"c\" #d \\e\nf\tg\x01h\n";
+  const MappingConfig strange = MappingConfig::parse(c.to_yaml(), "strange.yaml");
+  EXPECT_EQ(strange.preprocess.elevation_calibration, c.preprocess.elevation_calibration);
+  EXPECT_EQ(strange.to_yaml(), c.to_yaml());
   // Paper defaults.
   const MappingConfig d;
   EXPECT_EQ(d.local.th_max, 0.95);

@@ -200,11 +200,26 @@ MappingConfig MappingConfig::parse(const std::string& text, const std::string& p
 
 namespace {
 
-// YAML single-quoted scalar: a path may hold ': ' or '#', and an empty one must stay a string.
-std::string single_quoted(const std::string& text) {
-  std::string out = "'";
-  for (const char ch : text) out += ch == '\'' ? std::string("''") : std::string(1, ch);
-  return out + "'";
+// YAML double-quoted scalar: a path may hold ': ' or '#', and an empty one must stay a string. A
+// line break or tab in single quotes would be folded into a space when read back; escaped, it
+// survives the round trip.
+std::string double_quoted(const std::string& text) {
+  std::string out = "\"";
+  for (const char ch : text) {
+    const auto byte = static_cast<unsigned char>(ch);
+    if (ch == '"' || ch == '\\') {
+      out += '\\';
+      out += ch;
+    } else if (byte < 0x20 || byte == 0x7f) {
+      static const char hex[] = "0123456789abcdef";
+      out += "\\x";
+      out += hex[byte >> 4];
+      out += hex[byte & 15];
+    } else {
+      out += ch;
+    }
+  }
+  return out + "\"";
 }
 
 }  // namespace
@@ -223,7 +238,7 @@ std::string MappingConfig::to_yaml() const {
     if constexpr (std::is_same_v<T, bool>) out << (field ? "true" : "false");
     else if constexpr (std::is_enum_v<T>) out << to_string(field);
     else if constexpr (std::is_floating_point_v<T>) out << format_double(field);
-    else if constexpr (std::is_same_v<T, std::string>) out << single_quoted(field);
+    else if constexpr (std::is_same_v<T, std::string>) out << double_quoted(field);
     else out << field;
     out << "\n";
   });
