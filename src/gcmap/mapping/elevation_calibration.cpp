@@ -34,13 +34,22 @@ int bin_of(double elevation) {
   return b >= 0 && b < kBins ? b : -1;
 }
 
-// The point turned about the horizontal axis across its azimuth: elevation + delta, same range.
-Eigen::Vector3f raised(const Eigen::Vector3f& p, double delta) {
-  const double h = std::hypot(p.x(), p.y()), r = p.cast<double>().norm();
-  if (h < 1e-6) return p;  // binned away from the axis, but deskewing moved it there
-  const double e = std::atan2(static_cast<double>(p.z()), h) + delta, s = r * std::cos(e) / h;
-  return {static_cast<float>(p.x() * s), static_cast<float>(p.y() * s), static_cast<float>(r * std::sin(e))};
+// Points on the vertical axis have no elevation.
+int bin_of(const Eigen::Vector3f& p) {
+  const double h = std::hypot(p.x(), p.y());
+  return h > 1e-3 ? bin_of(std::atan2(static_cast<double>(p.z()), h)) : -1;
 }
+
+// The point turned about the horizontal axis across its azimuth by delta (given as its cosine and
+// sine): elevation + delta, same range. A rotation in the beam's vertical plane needs no angles.
+Eigen::Vector3f raised(const Eigen::Vector3f& p, double cos_delta, double sin_delta) {
+  const double h = std::hypot(p.x(), p.y());
+  if (h < 1e-6) return p;  // binned away from the axis, but deskewing moved it there
+  const double z = p.z(), h2 = h * cos_delta - z * sin_delta;
+  const double s = h2 / h;
+  return {static_cast<float>(p.x() * s), static_cast<float>(p.y() * s), static_cast<float>(h * sin_delta + z * cos_delta)};
+}
+Eigen::Vector3f raised(const Eigen::Vector3f& p, double delta) { return raised(p, std::cos(delta), std::sin(delta)); }
 
 // d p / d elevation: along the beam's vertical plane, as long as the horizontal range.
 Eigen::Vector3d elevation_direction(const Eigen::Vector3d& p) {
@@ -77,18 +86,19 @@ double ElevationCalibration::offset(double elevation) const {
 
 std::vector<int16_t> ElevationCalibration::bins(const PointCloud& cloud) {
   std::vector<int16_t> out(cloud.size(), -1);
-  for (size_t i = 0; i < cloud.size(); ++i) {
-    const Eigen::Vector3f& p = cloud.points[i];
-    const double h = std::hypot(p.x(), p.y());
-    if (h > 1e-3) out[i] = static_cast<int16_t>(bin_of(std::atan2(static_cast<double>(p.z()), h)));
-  }
+  for (size_t i = 0; i < cloud.size(); ++i) out[i] = static_cast<int16_t>(bin_of(cloud.points[i]));
   return out;
 }
 
 void ElevationCalibration::correct(PointCloud& cloud) const {
-  const std::vector<int16_t> b = bins(cloud);
-  for (size_t i = 0; i < cloud.size(); ++i)
-    if (b[i] >= 0 && offset_[b[i]] != 0.0) cloud.points[i] = raised(cloud.points[i], offset_[b[i]]);
+  std::vector<Eigen::Vector2d> turn(kBins);  // cos, sin of each bin's offset
+  for (int b = 0; b < kBins; ++b) turn[b] = {std::cos(offset_[b]), std::sin(offset_[b])};
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, cloud.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i) {
+      const int b = bin_of(cloud.points[i]);
+      if (b >= 0 && offset_[b] != 0.0) cloud.points[i] = raised(cloud.points[i], turn[b].x(), turn[b].y());
+    }
+  });
 }
 
 std::string ElevationCalibration::to_text() const {
