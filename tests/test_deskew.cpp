@@ -135,6 +135,24 @@ TEST(Deskew, ADownsampledSweepGetsTheExactMotionWithinMicrometres) {
   }
 }
 
+TEST(Deskew, BadTimesNeitherCrashNorAllocateATable) {
+  Vector6d v;
+  v << 0.0, 0.0, 1e200, 15.0, 0.0, 0.0;  // with a huge span, the rotation bound overflows
+  PointCloud c;
+  for (int i = 0; i < 4000; ++i) {
+    c.points.emplace_back(float(i % 50), 1.f, 0.f);
+    c.times.push_back(i == 7 ? std::nanf("") : (i == 8 ? 3e38f : 0.1f * float(i) / 4000.f));
+  }
+  PointCloud d = c;
+  deskew(d, v);  // no table: an exponential map per time
+  Vector6d slow = Vector6d::Zero();
+  slow[3] = 1.0;
+  c.times[8] = 0.05f;
+  deskew(c, slow);  // a table; the NaN time takes its first pose (t = 0): the point stays
+  EXPECT_EQ(c.points[7], Eigen::Vector3f(7.f, 1.f, 0.f));
+  EXPECT_NEAR(c.points[8].x(), 8.05f, 1e-5);
+}
+
 TEST(Deskew, RotatesCovariancesAndRejectsBadInput) {
   Vector6d v = Vector6d::Zero();
   v[2] = M_PI / 2;  // 90 deg/s about z

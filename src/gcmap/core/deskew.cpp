@@ -23,7 +23,8 @@ struct PoseTable {
   std::vector<Eigen::Matrix3f> R;
   std::vector<Eigen::Vector3f> t;
   void at(float time, Eigen::Matrix3f& Ri, Eigen::Vector3f& ti) const {
-    const float x = std::clamp((time - t0) * inv_step, 0.f, static_cast<float>(R.size() - 1));
+    const float f = (time - t0) * inv_step;  // NaN (a NaN time) takes the first pose
+    const float x = f >= 0.f ? std::min(f, static_cast<float>(R.size() - 1)) : 0.f;
     const size_t k = std::min(static_cast<size_t>(x), R.size() - 2);
     const float w = x - static_cast<float>(k);
     Ri = (1.f - w) * R[k] + w * R[k + 1];
@@ -52,9 +53,12 @@ void deskew(PointCloud& cloud, const Vector6d& velocity, const Vector6d& acceler
   const double span = static_cast<double>(*hi) - *lo;
   const double reach = std::max({std::abs(*lo - anchor), std::abs(*hi - anchor), span});
   const double turn = span * (velocity.head<3>().norm() + reach * acceleration.head<3>().norm());
-  const size_t steps = static_cast<size_t>(std::ceil(turn / kMaxTableStep)) + 16;
+  // At most a quarter as many poses as points: bad times (absolute stamps, a huge span) cannot
+  // make the table large, they leave the exponential map per time.
+  const double steps_wanted = std::ceil(turn / kMaxTableStep) + 16.0;
+  const bool tabled = span > 0.0 && 4.0 * steps_wanted < static_cast<double>(cloud.size());
+  const size_t steps = tabled ? static_cast<size_t>(steps_wanted) : 0;
   PoseTable table;
-  const bool tabled = std::isfinite(span) && span > 0.0 && cloud.size() > 4 * steps;
   if (tabled) {
     table.t0 = *lo;
     table.inv_step = static_cast<float>(steps / span);
