@@ -48,7 +48,7 @@ struct Kitti07 {
   }
 
   // That graph with the variables at the clouds' reference poses. The variables share the five
-  // clouds and voxel maps, which then stay in the CPU's caches; with `distinct`, each variable holds
+  // clouds and voxel maps, few enough to stay mostly in the caches; with `distinct`, each variable holds
   // its own copy, as each submap of a mapping run does.
   void make_graph(int num_factors, FactorGraph& graph, Values& values, bool distinct = false) const {
     const int num_vars = std::max(5, num_factors / 5);
