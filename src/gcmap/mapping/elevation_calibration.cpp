@@ -34,22 +34,21 @@ int bin_of(double elevation) {
   return b >= 0 && b < kBins ? b : -1;
 }
 
-// Points on the vertical axis have no elevation.
-int bin_of(const Eigen::Vector3f& p) {
-  const double h = std::hypot(p.x(), p.y());
-  return h > 1e-3 ? bin_of(std::atan2(static_cast<double>(p.z()), h)) : -1;
-}
+// Points on the vertical axis (horizontal range h) have no elevation.
+int bin_of(const Eigen::Vector3f& p, double h) { return h > 1e-3 ? bin_of(std::atan2(static_cast<double>(p.z()), h)) : -1; }
+int bin_of(const Eigen::Vector3f& p) { return bin_of(p, std::hypot(p.x(), p.y())); }
 
-// The point turned about the horizontal axis across its azimuth by delta (given as its cosine and
-// sine): elevation + delta, same range. A rotation in the beam's vertical plane needs no angles.
-Eigen::Vector3f raised(const Eigen::Vector3f& p, double cos_delta, double sin_delta) {
-  const double h = std::hypot(p.x(), p.y());
+// The point at horizontal range h turned about the horizontal axis across its azimuth by delta
+// (given as its cosine and sine): elevation + delta, same range. A rotation in the beam's vertical
+// plane needs no angles.
+Eigen::Vector3f raised(const Eigen::Vector3f& p, double h, double cos_delta, double sin_delta) {
   if (h < 1e-6) return p;  // binned away from the axis, but deskewing moved it there
-  const double z = p.z(), h2 = h * cos_delta - z * sin_delta;
-  const double s = h2 / h;
+  const double z = p.z(), s = (h * cos_delta - z * sin_delta) / h;
   return {static_cast<float>(p.x() * s), static_cast<float>(p.y() * s), static_cast<float>(h * sin_delta + z * cos_delta)};
 }
-Eigen::Vector3f raised(const Eigen::Vector3f& p, double delta) { return raised(p, std::cos(delta), std::sin(delta)); }
+Eigen::Vector3f raised(const Eigen::Vector3f& p, double delta) {
+  return raised(p, std::hypot(p.x(), p.y()), std::cos(delta), std::sin(delta));
+}
 
 // d p / d elevation: along the beam's vertical plane, as long as the horizontal range.
 Eigen::Vector3d elevation_direction(const Eigen::Vector3d& p) {
@@ -95,8 +94,10 @@ void ElevationCalibration::correct(PointCloud& cloud) const {
   for (int b = 0; b < kBins; ++b) turn[b] = {std::cos(offset_[b]), std::sin(offset_[b])};
   tbb::parallel_for(tbb::blocked_range<size_t>(0, cloud.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i != r.end(); ++i) {
-      const int b = bin_of(cloud.points[i]);
-      if (b >= 0 && offset_[b] != 0.0) cloud.points[i] = raised(cloud.points[i], turn[b].x(), turn[b].y());
+      const Eigen::Vector3f& p = cloud.points[i];
+      const double h = std::hypot(p.x(), p.y());  // once: for the bin and the turn
+      const int b = bin_of(p, h);
+      if (b >= 0 && offset_[b] != 0.0) cloud.points[i] = raised(p, h, turn[b].x(), turn[b].y());
     }
   });
 }
