@@ -13,29 +13,15 @@
 
 using namespace gcmap;
 
+namespace {
 
-int main() {
-  std::string why;
-  if (!cuda::device_available(&why)) {
-    std::printf("skipped: no CUDA device (%s)\n", why.c_str());
-    return 0;
-  }
-  const std::optional<bench::Kitti07> data = bench::Kitti07::load();
-  if (!data) {
-    std::printf("skipped: ../shared/data/kitti07_submaps is absent\n");
-    return 0;
-  }
-  const size_t points_per_factor = data->points_per_cloud;
-  const std::vector<ScanNode>& nodes = data->nodes;
-  const Trajectory& ref = data->reference;
-  auto gpu = std::make_shared<cuda::CudaBackend>();
-  std::printf("device: %s; %zu points per factor on average\n", gpu->name().c_str(), points_per_factor);
-
+// Batched linearization against the CPU, then a full LM run on the GPU, per graph size.
+void bench_graphs(const bench::Kitti07& data, const std::shared_ptr<cuda::CudaBackend>& gpu) {
   for (int num_factors : {10, 100, 1000, 4500}) {
     FactorGraph graph;
     Values values;
-    data->make_graph(num_factors, graph, values);
-    const double evaluations = static_cast<double>(num_factors) * points_per_factor;
+    data.make_graph(num_factors, graph, values);
+    const double evaluations = static_cast<double>(num_factors) * data.points_per_cloud;
     const bench::Timing g = bench::time_backend(*gpu, graph, values, 20);
     bench::Timing c;
     {
@@ -60,42 +46,66 @@ int main() {
                   it.trials, it.linearize_ms, it.assemble_ms, it.solve_ms);
     std::printf("              mean %.2f ms/iteration over %d (whole optimize() call)\n", r.total_ms / r.iterations, r.iterations);
   }
+}
 
-  // One registration (the odometry's call): cloud 1 onto cloud 0's voxels from a guess 0.3 m off.
-  {
-    const Eigen::Isometry3d truth = ref.poses[0].inverse() * ref.poses[1];
-    const Eigen::Isometry3d guess = truth * Eigen::Translation3d(0.3, -0.2, 0.1);
-    RegistrationConfig config;
-    config.max_iterations = 32;
-    RegistrationResult g = gpu->align(*nodes[1].cloud, nodes[0].voxels, guess, config);  // warm-up: the target's upload
-    Stopwatch w;
-    for (int r = 0; r < 20; ++r) g = gpu->align(*nodes[1].cloud, nodes[0].voxels, guess, config);
-    const double gpu_ms = w.ms() / 20;
-    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
-    CpuBackend cpu;
-    w.lap_ms();
-    const RegistrationResult c = cpu.align(*nodes[1].cloud, nodes[0].voxels, guess, config);
-    const double cpu_ms = w.ms();
-    std::printf("registration (%zu points, %d iterations): GPU %.2f ms (source upload included) | CPU 2 threads %.1f ms | results %.2g m apart\n",
-                nodes[1].cloud->size(), g.iterations, gpu_ms, cpu_ms, (g.T_target_source.translation() - c.T_target_source.translation()).norm());
-  }
+// One registration (the odometry's call): cloud 1 onto cloud 0's voxels from a guess 0.3 m off.
+void bench_registration(const bench::Kitti07& data, cuda::CudaBackend& gpu) {
+  const std::vector<ScanNode>& nodes = data.nodes;
+  const Eigen::Isometry3d truth = data.reference.poses[0].inverse() * data.reference.poses[1];
+  const Eigen::Isometry3d guess = truth * Eigen::Translation3d(0.3, -0.2, 0.1);
+  RegistrationConfig config;
+  config.max_iterations = 32;
+  RegistrationResult g = gpu.align(*nodes[1].cloud, nodes[0].voxels, guess, config);  // warm-up: the target's upload
+  Stopwatch w;
+  for (int r = 0; r < 20; ++r) g = gpu.align(*nodes[1].cloud, nodes[0].voxels, guess, config);
+  const double gpu_ms = w.ms() / 20;
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
+  CpuBackend cpu;
+  w.lap_ms();
+  const RegistrationResult c = cpu.align(*nodes[1].cloud, nodes[0].voxels, guess, config);
+  const double cpu_ms = w.ms();
+  std::printf("registration (%zu points, %d iterations): GPU %.2f ms (source upload included) | CPU 2 threads %.1f ms | results %.2g m apart\n",
+              nodes[1].cloud->size(), g.iterations, gpu_ms, cpu_ms, (g.T_target_source.translation() - c.T_target_source.translation()).norm());
+}
 
-  // Overlap of one source against many targets in one launch.
+// Overlap of one source against many targets in one launch.
+void bench_overlaps(const bench::Kitti07& data, cuda::CudaBackend& gpu) {
+  const std::vector<ScanNode>& nodes = data.nodes;
   for (int num_targets : {4, 100, 1000}) {
     std::vector<std::shared_ptr<const GaussianVoxelMap>> targets;
     std::vector<Eigen::Isometry3d> T;
     for (int k = 0; k < num_targets; ++k) {
       targets.push_back(nodes[1 + k % 4].voxels);
-      T.push_back(ref.poses[1 + k % 4].inverse() * ref.poses[0]);
+      T.push_back(data.reference.poses[1 + k % 4].inverse() * data.reference.poses[0]);
     }
     std::vector<double> out(num_targets);
-    gpu->overlaps(nodes[0].cloud, targets, T, out);
+    gpu.overlaps(nodes[0].cloud, targets, T, out);
     Stopwatch w;
-    for (int r = 0; r < 20; ++r) gpu->overlaps(nodes[0].cloud, targets, T, out);
+    for (int r = 0; r < 20; ++r) gpu.overlaps(nodes[0].cloud, targets, T, out);
     const double ms = w.ms() / 20;
     std::printf("overlap: 1 source (%zu points) x %d targets: %.3f ms per launch, %.4f ms per pair\n", nodes[0].cloud->size(), num_targets, ms,
                 ms / num_targets);
   }
+}
+
+}  // namespace
+
+int main() {
+  std::string why;
+  if (!cuda::device_available(&why)) {
+    std::printf("skipped: no CUDA device (%s)\n", why.c_str());
+    return 0;
+  }
+  const std::optional<bench::Kitti07> data = bench::Kitti07::load();
+  if (!data) {
+    std::printf("skipped: ../shared/data/kitti07_submaps is absent\n");
+    return 0;
+  }
+  auto gpu = std::make_shared<cuda::CudaBackend>();
+  std::printf("device: %s; %zu points per factor on average\n", gpu->name().c_str(), data->points_per_cloud);
+  bench_graphs(*data, gpu);
+  bench_registration(*data, *gpu);
+  bench_overlaps(*data, *gpu);
   const cuda::DeviceMemory m = gpu->memory();
   std::printf("device memory: %zu clouds, %zu points, %.1f bytes/point; %zu maps, %zu voxels in %zu slots, %.1f bytes/voxel (table included); batch buffers %.1f MB\n",
               m.num_clouds, m.num_points, static_cast<double>(m.cloud_bytes) / m.num_points, m.num_maps, m.num_voxels, m.num_slots,

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "gcmap/core/error.hpp"
 
@@ -89,6 +90,70 @@ struct CellGrid {
   }
 };
 
+// Zeroth, first and second moments of a set of points, as offsets from a query point.
+struct Moments {
+  double n = 0, s[3] = {0, 0, 0}, ss[6] = {0, 0, 0, 0, 0, 0};  // ss: xx xy xz yy yz zz
+};
+
+// The moments of the points within the radius of point q. Inlined: as a call, `mme` took 10 %
+// longer on a 3.9 M-point map.
+[[gnu::always_inline]] inline Moments moments_around(const CellGrid& grid,
+                                                     const std::vector<std::pair<uint32_t, uint32_t>>& runs, uint32_t q,
+                                                     float r2) {
+  const float qx = grid.x[q], qy = grid.y[q], qz = grid.z[q];
+  // Offsets from the query point are small, so float sums per run lose nothing that matters; runs
+  // are combined in double.
+  Moments m;
+  for (const auto& [b, e] : runs) {
+    // Masked sums over four lanes at a time (Eigen packets), the tail one point at a time.
+    using Lanes = Eigen::Array4f;
+    Lanes acc[10];
+    for (auto& v : acc) v.setZero();
+    const auto add = [&](const auto& dx, const auto& dy, const auto& dz, const auto& mask) {
+      const auto mx = (mask * dx).eval(), my = (mask * dy).eval(), mz = (mask * dz).eval();
+      acc[0] += mask;
+      acc[1] += mx;
+      acc[2] += my;
+      acc[3] += mz;
+      acc[4] += mx * dx;
+      acc[5] += mx * dy;
+      acc[6] += mx * dz;
+      acc[7] += my * dy;
+      acc[8] += my * dz;
+      acc[9] += mz * dz;
+    };
+    uint32_t j = b;
+    for (; j + 4 <= e; j += 4) {
+      const Lanes dx = Lanes::Map(&grid.x[j]) - qx, dy = Lanes::Map(&grid.y[j]) - qy, dz = Lanes::Map(&grid.z[j]) - qz;
+      add(dx, dy, dz, (dx * dx + dy * dy + dz * dz <= r2).select(Lanes::Ones(), Lanes::Zero()));
+    }
+    for (; j != e; ++j) {
+      Lanes dx = Lanes::Zero(), dy = Lanes::Zero(), dz = Lanes::Zero(), mask = Lanes::Zero();
+      dx[0] = grid.x[j] - qx, dy[0] = grid.y[j] - qy, dz[0] = grid.z[j] - qz;
+      mask[0] = dx[0] * dx[0] + dy[0] * dy[0] + dz[0] * dz[0] <= r2 ? 1.0f : 0.0f;
+      add(dx, dy, dz, mask);
+    }
+    double sums[10];
+    for (int k = 0; k < 10; ++k) sums[k] = acc[k].cast<double>().sum();
+    m.n += sums[0];
+    for (int k = 0; k < 3; ++k) m.s[k] += sums[1 + k];
+    for (int k = 0; k < 6; ++k) m.ss[k] += sums[4 + k];
+  }
+  return m;
+}
+
+// The differential entropy of those points' Gaussian; nullopt when they are too few or flat.
+std::optional<double> entropy(const Moments& m, int min_neighbors) {
+  if (m.n < min_neighbors) return std::nullopt;
+  const Eigen::Vector3d mean = Eigen::Vector3d(m.s[0], m.s[1], m.s[2]) / m.n;
+  Eigen::Matrix3d cov;
+  cov << m.ss[0], m.ss[1], m.ss[2], m.ss[1], m.ss[3], m.ss[4], m.ss[2], m.ss[4], m.ss[5];
+  cov = cov / m.n - mean * mean.transpose();
+  const double det = cov.determinant();
+  if (!(det > 0.0)) return std::nullopt;
+  return 0.5 * (3.0 * std::log(2.0 * M_PI * M_E) + std::log(det));
+}
+
 struct Acc {
   double sum = 0.0, sum2 = 0.0;
   size_t n = 0, skipped = 0;
@@ -106,8 +171,6 @@ MapEntropy mean_map_entropy(const PointCloud& map, double radius, int min_neighb
   }
   const CellGrid grid(map.points, radius);
   const float r2 = static_cast<float>(radius * radius);
-  const double log_2pie = std::log(2.0 * M_PI * M_E);
-
   const Acc acc = tbb::parallel_deterministic_reduce(
       tbb::blocked_range<size_t>(0, grid.cell_keys.size(), 16), Acc{},
       [&](const tbb::blocked_range<size_t>& r, Acc a) {
@@ -115,63 +178,13 @@ MapEntropy mean_map_entropy(const PointCloud& map, double radius, int min_neighb
         for (size_t c = r.begin(); c != r.end(); ++c) {
           grid.neighbour_runs(c, runs);
           for (uint32_t i = grid.cell_begin[c]; i != grid.cell_begin[c + 1]; ++i) {
-            const float qx = grid.x[i], qy = grid.y[i], qz = grid.z[i];
-            // Offsets from the query point are small, so float sums per run lose nothing that
-            // matters; runs are combined in double.
-            double n = 0, s[3] = {0, 0, 0}, ss[6] = {0, 0, 0, 0, 0, 0};
-            for (const auto& [b, e] : runs) {
-              // Masked sums over four lanes at a time (Eigen packets), the tail one point at a time.
-              using Lanes = Eigen::Array4f;
-              Lanes acc[10];
-              for (auto& v : acc) v.setZero();
-              uint32_t j = b;
-              const auto add = [&](const auto& dx, const auto& dy, const auto& dz, const auto& m) {
-                const auto mx = (m * dx).eval(), my = (m * dy).eval(), mz = (m * dz).eval();
-                acc[0] += m;
-                acc[1] += mx;
-                acc[2] += my;
-                acc[3] += mz;
-                acc[4] += mx * dx;
-                acc[5] += mx * dy;
-                acc[6] += mx * dz;
-                acc[7] += my * dy;
-                acc[8] += my * dz;
-                acc[9] += mz * dz;
-              };
-              for (; j + 4 <= e; j += 4) {
-                const Lanes dx = Lanes::Map(&grid.x[j]) - qx, dy = Lanes::Map(&grid.y[j]) - qy,
-                            dz = Lanes::Map(&grid.z[j]) - qz;
-                const Lanes m = (dx * dx + dy * dy + dz * dz <= r2).select(Lanes::Ones(), Lanes::Zero());
-                add(dx, dy, dz, m);
-              }
-              for (; j != e; ++j) {
-                Lanes dx = Lanes::Zero(), dy = Lanes::Zero(), dz = Lanes::Zero(), m = Lanes::Zero();
-                dx[0] = grid.x[j] - qx, dy[0] = grid.y[j] - qy, dz[0] = grid.z[j] - qz;
-                m[0] = dx[0] * dx[0] + dy[0] * dy[0] + dz[0] * dz[0] <= r2 ? 1.0f : 0.0f;
-                add(dx, dy, dz, m);
-              }
-              double sums[10];
-              for (int k = 0; k < 10; ++k) sums[k] = acc[k].cast<double>().sum();
-              n += sums[0];
-              for (int k = 0; k < 3; ++k) s[k] += sums[1 + k];
-              for (int k = 0; k < 6; ++k) ss[k] += sums[4 + k];
-            }
-            if (n < min_neighbors) {
+            const std::optional<double> h = entropy(moments_around(grid, runs, i, r2), min_neighbors);
+            if (!h) {
               ++a.skipped;
               continue;
             }
-            const Eigen::Vector3d mean = Eigen::Vector3d(s[0], s[1], s[2]) / n;
-            Eigen::Matrix3d cov;
-            cov << ss[0], ss[1], ss[2], ss[1], ss[3], ss[4], ss[2], ss[4], ss[5];
-            cov = cov / n - mean * mean.transpose();
-            const double det = cov.determinant();
-            if (!(det > 0.0)) {
-              ++a.skipped;
-              continue;
-            }
-            const double h = 0.5 * (3.0 * log_2pie + std::log(det));
-            a.sum += h;
-            a.sum2 += h * h;
+            a.sum += *h;
+            a.sum2 += *h * *h;
             ++a.n;
           }
         }

@@ -3,6 +3,7 @@
 #include <Eigen/SparseCore>
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -152,142 +153,171 @@ void assemble(std::span<const FactorLinearization> lin, Pattern& p, Eigen::Vecto
 
 }  // namespace
 
+// One optimize() call's state: the factors, their linearizations and the system's pattern. The
+// damping and the solver belong to the LevenbergMarquardt object (they carry over between calls).
+class LevenbergMarquardt::Iterations {
+ public:
+  Iterations(const FactorGraph& graph, const Values& values, const std::set<int>& fixed, LinearizationBackend& backend,
+             LMResult& result)
+      : s_(analyse(graph, values, fixed)), backend_(backend), result_(result) {
+    for (const auto& f : graph.factors) factors_.push_back(f.get());
+    lin_.resize(factors_.size());
+    trial_.resize(factors_.size());
+  }
+
+  int num_vars() const { return static_cast<int>(s_.keys.size()); }
+  bool empty() const { return s_.keys.empty() || factors_.empty(); }
+
+  // Linearizes every factor at `values`; returns the total error.
+  double linearize(const Values& values) {
+    Stopwatch w;
+    backend_.linearize(factors_, factor_poses(values), lin_);
+    double e = 0.0;
+    for (const auto& l : lin_) e += l.error;
+    result_.linearize_ms += w.ms();
+    return e;
+  }
+
+  // H and b from the current linearizations, and H's diagonal (the damping's scale).
+  void assemble(bool first) {
+    if (!pattern_) {
+      pattern_ = make_pattern(s_);
+      A_ = pattern_->H;
+    }
+    gcmap::assemble(lin_, *pattern_, b_);
+    const Eigen::SparseMatrix<double>& H = pattern_->H;
+    diag_.resize(6 * num_vars());
+    for (int k = 0; k < 6 * num_vars(); ++k) diag_[k] = H.valuePtr()[H.outerIndexPtr()[k]];
+    if (!first) return;
+    for (int v = 0; v < num_vars(); ++v)
+      if (!(diag_.segment<6>(6 * v).sum() > 0.0))
+        throw Error("pose " + std::to_string(s_.keys[v]) + " is not constrained by any factor (singular system)");
+  }
+
+  // Solves (H + lambda diag(H)) delta = -b; false when that system cannot be factorized.
+  bool solve(SparseSolver& solver, double lambda, Eigen::VectorXd& delta, LMIteration& stats) {
+    Stopwatch wa;
+    const Eigen::SparseMatrix<double>& H = pattern_->H;
+    std::copy(H.valuePtr(), H.valuePtr() + H.nonZeros(), A_.valuePtr());
+    for (int k = 0; k < 6 * num_vars(); ++k) A_.valuePtr()[A_.outerIndexPtr()[k]] += lambda * std::max(diag_[k], 1e-6);
+    stats.assemble_ms += wa.ms();
+    Stopwatch w;
+    const bool factorized = solver.factorize(A_);
+    if (factorized) delta = solver.solve(-b_);
+    stats.solve_ms += w.ms();
+    return factorized && delta.allFinite();
+  }
+
+  // The poses moved by delta, and their error with the current linearizations' associations.
+  double trial(const Values& values, const Eigen::VectorXd& delta, Values& moved) {
+    moved = values;
+    for (int v = 0; v < num_vars(); ++v) {
+      Eigen::Isometry3d& T = moved.at(s_.keys[v]);
+      T = normalized(T * se3_exp(delta.segment<6>(6 * v)));
+    }
+    Stopwatch w;
+    backend_.trial_errors(factors_, factor_poses(moved), trial_);
+    result_.linearize_ms += w.ms();
+    double e = 0.0;
+    for (double t : trial_) e += t;
+    return e;
+  }
+
+  // The decrease of the error that the quadratic model predicts for delta.
+  double predicted_decrease(const Eigen::VectorXd& delta) const {
+    // H is stored as its lower triangle: H * x needs the symmetric view.
+    return -(2.0 * b_.dot(delta) + delta.dot(pattern_->H.selfadjointView<Eigen::Lower>() * delta));
+  }
+
+ private:
+  std::vector<FactorPoses> factor_poses(const Values& values) const {
+    std::vector<FactorPoses> poses(factors_.size());
+    for (size_t f = 0; f < factors_.size(); ++f)
+      for (int k = 0; k < factors_[f]->num_keys(); ++k) poses[f][k] = &values.at(factors_[f]->keys()[k]);
+    return poses;
+  }
+
+  const Structure s_;
+  LinearizationBackend& backend_;
+  LMResult& result_;
+  std::vector<Factor*> factors_;
+  std::vector<FactorLinearization> lin_;
+  std::vector<double> trial_;
+  std::optional<Pattern> pattern_;
+  Eigen::SparseMatrix<double> A_;  // the damped copy of H, same pattern
+  Eigen::VectorXd b_, diag_;
+};
+
 LevenbergMarquardt::LevenbergMarquardt(LMConfig config, std::shared_ptr<LinearizationBackend> backend)
     : config_(config), backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
       solver_(config.linear_solver), lambda_(config.initial_lambda) {}
 
+std::optional<LevenbergMarquardt::Step> LevenbergMarquardt::damped_step(Iterations& it, const Values& values,
+                                                                        double error, LMIteration& stats) {
+  Step step;
+  Eigen::VectorXd delta;
+  for (; lambda_ <= config_.max_lambda; lambda_ *= config_.lambda_up) {
+    ++stats.trials;
+    if (!it.solve(solver_, lambda_, delta, stats)) continue;
+    step.error = it.trial(values, delta, step.values);
+    if (!(std::isfinite(step.error) && step.error < error)) continue;
+    step.predicted = it.predicted_decrease(delta);
+    step.lambda = lambda_;
+    step.max_delta = delta.lpNorm<Eigen::Infinity>();
+    const double rho = step.predicted > 0 ? (error - step.error) / step.predicted : 0.5;
+    lambda_ = std::max(lambda_ * std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3)), 1e-12);
+    return step;
+  }
+  return std::nullopt;
+}
+
+bool LevenbergMarquardt::converged(double error, const Step& step) const {
+  const double decrease = error - step.error;
+  // Converged also when a nearly undamped step gained what the quadratic model predicted to within
+  // the tolerance: the next step would gain about that model error, so it is not worth its
+  // linearization (mostly the confirming second iteration of a warm-started insertion).
+  const double tol = config_.relative_error_tol * std::max(step.error, 1e-12);
+  return decrease < tol || step.max_delta < config_.step_tol ||
+         (step.lambda <= 1e-3 && std::abs(decrease - step.predicted) < tol);
+}
+
 LMResult LevenbergMarquardt::optimize(const FactorGraph& graph, Values& values, const std::set<int>& fixed) {
   Stopwatch total;
   LMResult result;
-  const Structure s = analyse(graph, values, fixed);
-  const size_t nf = graph.factors.size();
-  const int n = static_cast<int>(s.keys.size());
-  std::vector<Factor*> factors(nf);
-  for (size_t f = 0; f < nf; ++f) factors[f] = graph.factors[f].get();
-
-  auto factor_poses = [&](const Values& vals) {
-    std::vector<FactorPoses> poses(nf);
-    for (size_t f = 0; f < nf; ++f)
-      for (int k = 0; k < factors[f]->num_keys(); ++k) poses[f][k] = &vals.at(factors[f]->keys()[k]);
-    return poses;
-  };
-
-  std::vector<FactorLinearization> lin(nf);
-  std::vector<double> trial(nf);
-  auto linearize = [&](const Values& vals) {
-    Stopwatch w;
-    const auto poses = factor_poses(vals);
-    backend_->linearize(factors, poses, lin);
-    double e = 0.0;
-    for (const auto& l : lin) e += l.error;
-    result.linearize_ms += w.ms();
-    return e;
-  };
-
-  double error = linearize(values);
+  Iterations it(graph, values, fixed, *backend_, result);
+  double error = it.linearize(values);
   result.initial_error = result.final_error = error;
-  if (n == 0 || nf == 0) {
+  if (it.empty()) {
     result.converged = true;
     result.total_ms = total.ms();
     return result;
   }
-
-  Pattern pattern = make_pattern(s);
-  const Eigen::SparseMatrix<double>& H = pattern.H;
-  Eigen::SparseMatrix<double> A = H;  // the damped copy, same pattern
-  Eigen::VectorXd b;
   const int analyses_before = solver_.analyses();
-
   for (int iter = 1; iter <= config_.max_iterations; ++iter) {
     LMIteration stats;
     stats.iteration = iter;
     const double lin_ms_before = result.linearize_ms;
     Stopwatch wa;
-    assemble(lin, pattern, b);
-    Eigen::VectorXd diag(6 * n);
-    for (int k = 0; k < 6 * n; ++k) diag[k] = H.valuePtr()[H.outerIndexPtr()[k]];
-    if (iter == 1) {
-      for (int v = 0; v < n; ++v) {
-        if (!(diag.segment<6>(6 * v).sum() > 0.0))
-          throw Error("pose " + std::to_string(s.keys[v]) + " is not constrained by any factor (singular system)");
-      }
-    }
+    it.assemble(iter == 1);
     stats.assemble_ms = wa.ms();
-    // H is stored as its lower triangle: H * x needs the symmetric view.
-    auto quad = [&](const Eigen::VectorXd& x) { return x.dot(H.selfadjointView<Eigen::Lower>() * x); };
-
-    bool accepted = false;
-    Values trial_values;
-    double trial_error = 0.0, predicted_decrease = 0.0, step_lambda = 0.0;
-    Eigen::VectorXd delta;
-    stats.solve_ms = 0.0;
-    while (lambda_ <= config_.max_lambda) {
-      ++stats.trials;
-      Stopwatch wa_trial;
-      std::copy(H.valuePtr(), H.valuePtr() + H.nonZeros(), A.valuePtr());
-      for (int k = 0; k < 6 * n; ++k) A.valuePtr()[A.outerIndexPtr()[k]] += lambda_ * std::max(diag[k], 1e-6);
-      stats.assemble_ms += wa_trial.ms();
-      Stopwatch w;
-      const bool factorized = solver_.factorize(A);
-      if (factorized) delta = solver_.solve(-b);
-      stats.solve_ms += w.ms();
-      if (!factorized || !delta.allFinite()) {
-        lambda_ *= config_.lambda_up;
-        continue;
-      }
-      trial_values = values;
-      for (int v = 0; v < n; ++v) {
-        Eigen::Isometry3d& T = trial_values.at(s.keys[v]);
-        T = normalized(T * se3_exp(delta.segment<6>(6 * v)));
-      }
-      {
-        Stopwatch wl;
-        const auto poses = factor_poses(trial_values);
-        backend_->trial_errors(factors, poses, trial);
-        result.linearize_ms += wl.ms();
-      }
-      trial_error = 0.0;
-      for (double e : trial) trial_error += e;
-      const double predicted = -(2.0 * b.dot(delta) + quad(delta));
-      if (std::isfinite(trial_error) && trial_error < error) {
-        const double rho = predicted > 0 ? (error - trial_error) / predicted : 0.5;
-        predicted_decrease = predicted;
-        step_lambda = lambda_;
-        lambda_ = std::max(lambda_ * std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3)), 1e-12);
-        accepted = true;
-        break;
-      }
-      lambda_ *= config_.lambda_up;
-    }
+    std::optional<Step> step = damped_step(it, values, error, stats);
     result.solve_ms += stats.solve_ms;
     result.assemble_ms += stats.assemble_ms;
     stats.lambda = lambda_;
-    if (!accepted) {
-      // No damping gives a decrease: a minimum of the current linearization.
-      lambda_ = config_.initial_lambda;
-      result.converged = true;
-      stats.error = error;
-      stats.linearize_ms = result.linearize_ms - lin_ms_before;
-      result.history.push_back(stats);
-      result.iterations = iter;
-      break;
-    }
-    const double decrease = error - trial_error;
-    values = std::move(trial_values);
-    // Converged also when a nearly undamped step gained what the quadratic model predicted to within
-    // the tolerance: the next step would gain about that model error, so it is not worth its
-    // linearization (mostly the confirming second iteration of a warm-started insertion).
-    const double tol = config_.relative_error_tol * std::max(trial_error, 1e-12);
-    result.converged = decrease < tol || delta.lpNorm<Eigen::Infinity>() < config_.step_tol ||
-                       (step_lambda <= 1e-3 && std::abs(decrease - predicted_decrease) < tol);
+    result.iterations = iter;
+    // No step: no damping gives a decrease, a minimum of the current linearization.
+    if (!step) lambda_ = config_.initial_lambda;
+    result.converged = !step || converged(error, *step);
     // A linearization nobody will use is the most expensive thing LM could do here: the last
     // iteration reports its trial error (same association) instead.
     const bool last = result.converged || iter == config_.max_iterations;
-    error = last ? trial_error : linearize(values);
+    if (step) {
+      values = std::move(step->values);
+      error = last ? step->error : it.linearize(values);
+    }
     stats.error = error;
     stats.linearize_ms = result.linearize_ms - lin_ms_before;
     result.history.push_back(stats);
-    result.iterations = iter;
     if (last) break;
   }
   result.final_error = error;

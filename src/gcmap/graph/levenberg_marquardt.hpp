@@ -1,5 +1,6 @@
 #pragma once
 #include <memory>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -63,6 +64,15 @@ class LevenbergMarquardt {
   void set_backend(std::shared_ptr<LinearizationBackend> backend) { backend_ = std::move(backend); }
 
  private:
+  class Iterations;
+  struct Step {
+    Values values;  // the poses after the step
+    double error = 0.0, predicted = 0.0, lambda = 0.0, max_delta = 0.0;
+  };
+  // Raises the damping until a step lowers the error; nullopt when none does up to max_lambda.
+  std::optional<Step> damped_step(Iterations& it, const Values& values, double error, LMIteration& stats);
+  bool converged(double error, const Step& step) const;
+
   LMConfig config_;
   std::shared_ptr<LinearizationBackend> backend_;
   SparseSolver solver_;
