@@ -7,7 +7,7 @@
 
 namespace gcmap {
 
-// k-nearest-neighbour and radius search over float points (nanoflann; the points must outlive it).
+// k-nearest-neighbour search over float points (nanoflann; the points must outlive it).
 class KdTree {
  public:
   explicit KdTree(const std::vector<Eigen::Vector3f>& points)
@@ -21,13 +21,6 @@ class KdTree {
     result.init(indices, sq_dists);
     index_.findNeighbors(result, query.data(), nanoflann::SearchParams(32, 0.0f, true));
     return result.size();
-  }
-
-  // Indices of all points within radius; `out` is reused to avoid allocation.
-  size_t radius(const Eigen::Vector3f& query, float radius,
-                std::vector<std::pair<uint32_t, float>>& out) const {
-    nanoflann::SearchParams params(32, 0.0f, false);
-    return index_.radiusSearch(query.data(), radius * radius, out, params);
   }
 
  private:

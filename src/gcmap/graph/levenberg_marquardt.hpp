@@ -61,7 +61,6 @@ class LevenbergMarquardt {
   const LMConfig& config() const { return config_; }
   // The sparse solver in use (what linear_solver auto chose for the last system).
   LinearSolver active_solver() const { return solver_.active(); }
-  void set_backend(std::shared_ptr<LinearizationBackend> backend) { backend_ = std::move(backend); }
 
  private:
   class Iterations;

@@ -156,7 +156,6 @@ GlobalMode parse_global_mode(const std::string& text, const std::string& key) { 
 FactorSource parse_factor_source(const std::string& text, const std::string& key) {
   return parse_config_enum<FactorSource>(text, key);
 }
-Relinearize parse_relinearize(const std::string& text, const std::string& key) { return parse_config_enum<Relinearize>(text, key); }
 
 MappingConfig MappingConfig::load(const std::string& path) { return parse(read_file(path), path); }
 

@@ -25,7 +25,6 @@ const char* to_string(LinearSolver solver);  // "eigen", "cholmod"
 // Throws Error naming `key` when the text is none of the names.
 GlobalMode parse_global_mode(const std::string& text, const std::string& key);
 FactorSource parse_factor_source(const std::string& text, const std::string& key);
-Relinearize parse_relinearize(const std::string& text, const std::string& key);
 
 struct PreprocessConfig {
   double min_range = 2.0;  // m: drops returns from the ego vehicle

@@ -38,7 +38,6 @@ class SubmapBuilder {
   // again, see SweepRevision); false when the frame is no open keyframe.
   bool revise(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom);
 
-  bool has_open_keyframes() const { return !open_.empty(); }
   const LocalMappingStats& stats() const { return stats_; }
 
  private:

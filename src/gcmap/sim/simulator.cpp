@@ -69,8 +69,11 @@ bool RealismConfig::any() const {
 
 std::string RealismConfig::to_string() const {
   std::string out;
-  for (const auto& k : kRealismKeys)
-    if (this->*k.flag) out += (out.empty() ? "" : ",") + std::string(k.name);
+  for (const auto& k : kRealismKeys) {
+    if (!(this->*k.flag)) continue;
+    if (!out.empty()) out += ',';
+    out += k.name;
+  }
   return out.empty() ? "none" : out;
 }
 

@@ -100,7 +100,6 @@ class World {
   std::vector<Box>& boxes() { return boxes_; }
   std::vector<Sphere>& spheres() { return spheres_; }
 
-  size_t num_objects() const { return boxes_.size() + oboxes_.size() + cylinders_.size() + spheres_.size(); }
 
  private:
   void index(int kind, int id, Eigen::Vector2f lo, Eigen::Vector2f hi);
