@@ -26,6 +26,40 @@ TEST(RobustKernel, HandComputedWeights) {
   EXPECT_THROW(RobustKernel::parse("cauchy", 1.0, 0.0), Error);
 }
 
+// Kept associations must give exactly the trial errors of looking the voxels up again at the
+// linearization's pose, and those must differ from a fresh association where points change voxels.
+TEST(MatchingCostFactor, KeptAssociationsGiveTheSameTrialErrors) {
+  std::mt19937_64 rng(17);
+  PointCloud target_cloud = voxel_downsample(make_structured_scene(15000, 71), 0.25);
+  estimate_covariances(target_cloud);
+  const Eigen::Isometry3d T_truth = test::random_pose(rng, 0.1, 1.0);
+  PointCloud source = transformed(voxel_downsample(make_structured_scene(15000, 72), 0.25), T_truth.inverse());
+  estimate_covariances(source);
+  const auto src = std::make_shared<const PointCloud>(std::move(source));
+  const ScanNode target = make_scan_node(std::move(target_cloud), 0.5);
+  MatchingCostFactor looked_up(1, 0, src, target.voxels), kept(1, 0, src, target.voxels, true);
+  const Eigen::Isometry3d T0 = Eigen::Isometry3d::Identity();
+  const Eigen::Isometry3d T_lin = T_truth * test::random_pose(rng, 0.02, 0.05);
+  // Before any linearization both look the voxels up at the identity.
+  const Eigen::Isometry3d* at_lin[2] = {&T_lin, &T0};
+  EXPECT_EQ(kept.trial_error(at_lin), looked_up.trial_error(at_lin));
+  FactorLinearization a, b;
+  looked_up.linearize(at_lin, a);
+  kept.linearize(at_lin, b);
+  EXPECT_EQ(a.error, b.error);
+  EXPECT_TRUE(a.H == b.H && a.b == b.b);
+  for (double step : {0.01, 0.1, 0.3}) {
+    const Eigen::Isometry3d T = T_lin * test::random_pose(rng, step, step);
+    const Eigen::Isometry3d* at[2] = {&T, &T0};
+    EXPECT_EQ(kept.trial_error(at), looked_up.trial_error(at)) << step;
+    if (step == 0.3) {
+      FactorLinearization fresh;
+      MatchingCostFactor(1, 0, src, target.voxels).linearize(at, fresh);
+      EXPECT_NE(kept.trial_error(at), fresh.error);
+    }
+  }
+}
+
 TEST(RelativePoseFactor, JacobianMatchesNumeric) {
   std::mt19937_64 rng(9);
   const Eigen::Isometry3d Ti = test::random_pose(rng, 1.0, 5.0), Tj = test::random_pose(rng, 1.0, 5.0);

@@ -7,14 +7,15 @@
 namespace gcmap {
 
 MatchingCostFactor::MatchingCostFactor(int source_key, int target_key, std::shared_ptr<const PointCloud> source,
-                                       std::shared_ptr<const GaussianVoxelMap> target)
-    : source_(std::move(source)), target_(std::move(target)) {
+                                       std::shared_ptr<const GaussianVoxelMap> target, bool keep_associations)
+    : source_(std::move(source)), target_(std::move(target)), keep_associations_(keep_associations) {
   keys_ = {source_key, target_key};
 }
 
 void MatchingCostFactor::linearize(const Eigen::Isometry3d* const* poses, FactorLinearization& out) {
   T_lin_ = poses[1]->inverse() * *poses[0];
-  to_factor_linearization(linearize_vgicp(*source_, *target_, T_lin_), out);
+  if (keep_associations_) to_factor_linearization(linearize_vgicp(*source_, *target_, T_lin_, associations_), out);
+  else to_factor_linearization(linearize_vgicp(*source_, *target_, T_lin_), out);
 }
 
 void to_factor_linearization(const VgicpLinearization& lin, FactorLinearization& out) {
@@ -27,7 +28,9 @@ void to_factor_linearization(const VgicpLinearization& lin, FactorLinearization&
 }
 
 double MatchingCostFactor::trial_error(const Eigen::Isometry3d* const* poses) const {
-  return evaluate_vgicp(*source_, *target_, poses[1]->inverse() * *poses[0], T_lin_).error;
+  const Eigen::Isometry3d T = poses[1]->inverse() * *poses[0];
+  if (associations_.size() == source_->size()) return evaluate_vgicp(*source_, *target_, T, associations_).error;
+  return evaluate_vgicp(*source_, *target_, T, T_lin_).error;
 }
 
 RelativePoseFactor::RelativePoseFactor(int key_i, int key_j, const Eigen::Isometry3d& measured,
