@@ -37,7 +37,7 @@ TEST(MatchingCostFactor, KeptAssociationsGiveTheSameTrialErrors) {
   estimate_covariances(source);
   const auto src = std::make_shared<const PointCloud>(std::move(source));
   const ScanNode target = make_scan_node(std::move(target_cloud), 0.5);
-  MatchingCostFactor looked_up(1, 0, src, target.voxels), kept(1, 0, src, target.voxels, true);
+  MatchingCostFactor looked_up(1, 0, src, target.voxels), kept(1, 0, src, target.voxels, TrialVoxels::kept);
   const Eigen::Isometry3d T0 = Eigen::Isometry3d::Identity();
   const Eigen::Isometry3d T_lin = T_truth * test::random_pose(rng, 0.02, 0.05);
   // Before any linearization both look the voxels up at the identity.

@@ -7,15 +7,17 @@
 namespace gcmap {
 
 MatchingCostFactor::MatchingCostFactor(int source_key, int target_key, std::shared_ptr<const PointCloud> source,
-                                       std::shared_ptr<const GaussianVoxelMap> target, bool keep_associations)
-    : source_(std::move(source)), target_(std::move(target)), keep_associations_(keep_associations) {
+                                       std::shared_ptr<const GaussianVoxelMap> target, TrialVoxels trial_voxels)
+    : source_(std::move(source)), target_(std::move(target)), trial_voxels_(trial_voxels) {
   keys_ = {source_key, target_key};
 }
 
 void MatchingCostFactor::linearize(const Eigen::Isometry3d* const* poses, FactorLinearization& out) {
   T_lin_ = poses[1]->inverse() * *poses[0];
-  if (keep_associations_) to_factor_linearization(linearize_vgicp(*source_, *target_, T_lin_, associations_), out);
-  else to_factor_linearization(linearize_vgicp(*source_, *target_, T_lin_), out);
+  const bool keep = trial_voxels_ == TrialVoxels::kept;
+  to_factor_linearization(keep ? linearize_vgicp(*source_, *target_, T_lin_, associations_)
+                               : linearize_vgicp(*source_, *target_, T_lin_),
+                          out);
 }
 
 void to_factor_linearization(const VgicpLinearization& lin, FactorLinearization& out) {

@@ -92,7 +92,7 @@ bool Localizer::track(const std::shared_ptr<const PointCloud>& cloud, const Eige
     values[j] = prior_->T_map_submap[j];
     fixed.insert(j);
     matched.push_back(j);
-    graph.add(std::make_shared<MatchingCostFactor>(self, j, cloud, prior_->submaps[j].voxels, true));
+    graph.add(std::make_shared<MatchingCostFactor>(self, j, cloud, prior_->submaps[j].voxels, TrialVoxels::kept));
   }
   if (matched.empty()) return false;
   if (previous && odometry_poses_.size() >= 2) {
