@@ -143,6 +143,18 @@ void print_distinct(const bench::Kitti07& data, int num_factors, double points, 
               points / t.linearize_ms / 1e3, t.linearize_ms, t.linearize_ms / shared_ms, points / t.trial_ms / 1e3);
 }
 
+// Trial errors with the voxels kept from the linearization (TrialVoxels::kept, as in-submap factors
+// have them) against looking them up again.
+void print_kept(const bench::Kitti07& data, int num_factors, double points, double looked_up_ms) {
+  FactorGraph graph;
+  Values values;
+  data.make_graph(num_factors, graph, values, false, TrialVoxels::kept);
+  CpuBackend backend;
+  const bench::Timing t = bench::time_backend(backend, graph, values, num_factors >= 1000 ? 1 : 3);
+  std::printf("  voxels kept from the linearization: trial evaluation %.1f M points/s (%.2fx the time of looking them up)\n",
+              points / t.trial_ms / 1e3, t.trial_ms / looked_up_ms);
+}
+
 void bench_lm(const bench::Kitti07& data) {
   for (int num_factors : {10, 100, 1000, 4500}) {
     FactorGraph graph;
@@ -156,6 +168,7 @@ void bench_lm(const bench::Kitti07& data) {
       const bench::Timing t = bench::time_backend(backend, graph, values, num_factors >= 1000 ? 1 : 3);
       std::printf("factors=%4d vars=%3d threads=%d  linearization %.1f M points/s (%.1f ms)  trial evaluation %.1f M points/s\n",
                   num_factors, num_vars, threads, points / t.linearize_ms / 1e3, t.linearize_ms, points / t.trial_ms / 1e3);
+      if (num_factors <= 1000) print_kept(data, num_factors, points, t.trial_ms);
       if (num_factors >= 1000) print_distinct(data, num_factors, points, t.linearize_ms);
       if (threads == 1) continue;
       for (LinearSolver kind : {LinearSolver::eigen, LinearSolver::cholmod}) {

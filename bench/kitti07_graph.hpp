@@ -50,7 +50,8 @@ struct Kitti07 {
   // That graph with the variables at the clouds' reference poses. The variables share the five
   // clouds and voxel maps, few enough to stay mostly in the caches; with `distinct`, each variable holds
   // its own copy, as each submap of a mapping run does.
-  void make_graph(int num_factors, FactorGraph& graph, Values& values, bool distinct = false) const {
+  void make_graph(int num_factors, FactorGraph& graph, Values& values, bool distinct = false,
+                  TrialVoxels trial_voxels = TrialVoxels::look_up) const {
     const int num_vars = std::max(5, num_factors / 5);
     std::vector<ScanNode> own;
     for (int v = 0; v < num_vars; ++v) {
@@ -60,7 +61,7 @@ struct Kitti07 {
                              : nodes[v % 5]);
     }
     for (const auto& [u, v] : graph_pairs(num_factors))
-      graph.add(std::make_shared<MatchingCostFactor>(u, v, own[u].cloud, own[v].voxels));
+      graph.add(std::make_shared<MatchingCostFactor>(u, v, own[u].cloud, own[v].voxels, trial_voxels));
   }
 };
 
