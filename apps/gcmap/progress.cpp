@@ -28,7 +28,7 @@ void Progress::update(size_t done, const std::string& detail) {
   last_log_s_ = t;
   const double rate = t > 0 ? done / t : 0.0;
   std::string line = what_ + " " + std::to_string(done);
-  if (total_) line += "/" + std::to_string(total_);
+  if (total_) line.append("/").append(std::to_string(total_));
   char buf[64];
   std::snprintf(buf, sizeof buf, "  %.1f/s", rate);
   line += buf;

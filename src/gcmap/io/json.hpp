@@ -32,7 +32,11 @@ class Json {
 
   // Object member (created on first use, insertion order kept).
   Json& operator[](const std::string& key);
-  void push_back(Json v) { std::get<Array>(value_).push_back(std::move(v)); }
+  // Constructs the element in place (a Json moved in set off GCC 12's -Wmaybe-uninitialized).
+  template <typename T>
+  void push_back(T&& v) {
+    std::get<Array>(value_).emplace_back(std::forward<T>(v));
+  }
 
   std::string dump() const;
 

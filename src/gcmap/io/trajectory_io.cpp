@@ -118,7 +118,7 @@ void write_trajectory(const std::string& path, const Trajectory& traj) {
         pose_to_xyz_quat(T, v);
         const std::string head = traj.format == TrajectoryFormat::tum
                                      ? [&] { char s[64]; std::snprintf(s, sizeof(s), "%.9f", i < traj.stamps.size() ? traj.stamps[i] : double(i)); return std::string(s); }()
-                                     : (i < traj.names.size() ? traj.names[i] : "v" + std::to_string(i));
+                                     : (i < traj.names.size() ? traj.names[i] : std::string("v").append(std::to_string(i)));
         std::snprintf(buf, sizeof(buf), "%s %.9g %.9g %.9g %.9g %.9g %.9g %.9g\n", head.c_str(), v[0], v[1], v[2], v[3],
                       v[4], v[5], v[6]);
       }
