@@ -100,7 +100,6 @@ class World {
   std::vector<Box>& boxes() { return boxes_; }
   std::vector<Sphere>& spheres() { return spheres_; }
 
-
  private:
   void index(int kind, int id, Eigen::Vector2f lo, Eigen::Vector2f hi);
   bool ground_hit(const Eigen::Vector3f& o, const Eigen::Vector3f& d, float t_max, float& t) const;
