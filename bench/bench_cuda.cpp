@@ -1,11 +1,14 @@
 // The CUDA backend against the 2-thread CPU path on the same graphs (real kitti07 clouds, ~20k points
 // per factor): batched linearization and trial evaluation per LM iteration for up to 4,500 factors
-// (the paper's KITTI 00 final graph), point evaluations per second, overlap per pair, device bytes.
+// (the paper's KITTI 00 final graph), point evaluations per second, overlap per pair, a scan's
+// covariances, device bytes.
 // Not a test: prints "skipped" without a GPU or without ../shared/data.
 #include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
 
 #include <cstdio>
 
+#include "gcmap/core/preprocess.hpp"
 #include "gcmap/core/timer.hpp"
 #include "gcmap/cuda/cuda_backend.hpp"
 #include "gcmap/graph/levenberg_marquardt.hpp"
@@ -88,6 +91,33 @@ void bench_overlaps(const bench::Kitti07& data, cuda::CudaBackend& gpu) {
   }
 }
 
+// A scan's covariances (k = 10) on the device: one call alone, then 4 threads at once (the pipeline
+// prepares several scans side by side, each thread in its own stream), against the CPU's kd-tree.
+void bench_covariances(const bench::Kitti07& data, cuda::CudaBackend& gpu) {
+  PointCloud scan;
+  scan.points = data.nodes[0].cloud->points;
+  CovarianceConfig config;
+  config.num_neighbors = 10;
+  PointCloud out = scan;
+  gpu.estimate_covariances(out, config);  // warm-up: buffers
+  Stopwatch w;
+  for (int r = 0; r < 20; ++r) gpu.estimate_covariances(out, config);
+  const double alone_ms = w.ms() / 20;
+  std::vector<PointCloud> outs(4, scan);
+  w.lap_ms();
+  tbb::parallel_for(0, 4, [&](int t) {
+    for (int r = 0; r < 20; ++r) gpu.estimate_covariances(outs[t], config);
+  });
+  const double together_ms = w.ms() / 80;
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
+  PointCloud on_cpu = scan;
+  w.lap_ms();
+  estimate_covariances(on_cpu, config);
+  const double cpu_ms = w.ms();
+  std::printf("covariances (%zu points, k 10): GPU %.2f ms alone, %.2f ms per scan with 4 threads at once | CPU 2 threads %.1f ms\n",
+              scan.size(), alone_ms, together_ms, cpu_ms);
+}
+
 }  // namespace
 
 int main() {
@@ -106,6 +136,7 @@ int main() {
   bench_graphs(*data, gpu);
   bench_registration(*data, *gpu);
   bench_overlaps(*data, *gpu);
+  bench_covariances(*data, *gpu);
   const cuda::DeviceMemory m = gpu->memory();
   std::printf("device memory: %zu clouds, %zu points, %.1f bytes/point; %zu maps, %zu voxels in %zu slots, %.1f bytes/voxel (table included); batch buffers %.1f MB\n",
               m.num_clouds, m.num_points, static_cast<double>(m.cloud_bytes) / m.num_points, m.num_maps, m.num_voxels, m.num_slots,

@@ -2,7 +2,10 @@
 // here on the host), backend selection, and CPU/GPU parity on real clouds where a GPU answers.
 #include <cmath>
 #include <random>
+#include <thread>
 #include <vector>
+
+#include <tbb/parallel_for.h>
 
 #include <Eigen/Eigenvalues>
 
@@ -310,6 +313,40 @@ TEST(GpuParityPreprocessing, CovariancesMatchTheCpu) {
   const RegistrationResult g = cpu.align(source_gpu, target.voxels, guess, RegistrationConfig{});
   EXPECT_LT(test::translation_error(g.T_target_source, c.T_target_source), 1e-3);
   EXPECT_LT(test::rotation_error_deg(g.T_target_source, c.T_target_source), 0.01);
+}
+
+// Threads share one backend as the pipeline does: scans prepared on several threads while another
+// registers, each in its own stream. Every result equals the one computed alone, bit for bit (the
+// kernels sum in a fixed order), so no call read another's buffers or an unfinished upload.
+TEST(GpuParityConcurrency, ThreadsSharingTheBackendGetWhatEachGetsAlone) {
+  GCMAP_REQUIRE_GPU();
+  const sim::Simulator simulator(sim::SimulationConfig{.scenario = "small"});
+  const MappingConfig config;
+  const auto gpu = std::make_shared<cuda::CudaBackend>();
+  std::vector<PointCloud> raw, alone;
+  for (size_t f = 0; f < 8; ++f) {
+    raw.push_back(simulator.scan(f));
+    alone.push_back(preprocess_scan(raw.back(), config.preprocess, gpu.get()));
+  }
+  const ScanNode target = make_scan_node(alone[0], 1.0);
+  const Eigen::Isometry3d guess = simulator.poses()[0].inverse() * simulator.poses()[1];
+  const RegistrationResult reference = gpu->align(alone[1], target.voxels, guess, RegistrationConfig{});
+  std::vector<RegistrationResult> registered(30);
+  std::vector<PointCloud> together(raw.size());
+  std::thread registering([&] {
+    for (auto& r : registered) r = gpu->align(alone[1], target.voxels, guess, RegistrationConfig{});
+  });
+  for (int round = 0; round < 3; ++round)
+    tbb::parallel_for(size_t{0}, raw.size(), [&](size_t f) { together[f] = preprocess_scan(raw[f], config.preprocess, gpu.get()); });
+  registering.join();
+  for (size_t f = 0; f < raw.size(); ++f) {
+    ASSERT_EQ(together[f].size(), alone[f].size()) << f;
+    for (size_t i = 0; i < alone[f].size(); ++i) ASSERT_EQ(together[f].covs[i], alone[f].covs[i]) << f << " " << i;
+  }
+  for (const RegistrationResult& r : registered) {
+    EXPECT_EQ(r.T_target_source.matrix(), reference.T_target_source.matrix());
+    EXPECT_EQ(r.num_inliers, reference.num_inliers);
+  }
 }
 
 }  // namespace

@@ -144,7 +144,8 @@ struct CudaBackend::Impl {
 
   // align(): the source is uploaded by every call (the odometry deskews a frame in place between
   // registrations); the target is kept while the same map comes back (the odometry's model lives
-  // until the next keyframe); holding it keeps its address from being reused.
+  // until the next keyframe); holding it keeps its address from being reused. One at a time.
+  std::mutex registration_mutex;
   struct Registration {
     device::Cloud source;
     std::shared_ptr<const GaussianVoxelMap> target;
@@ -156,11 +157,26 @@ struct CudaBackend::Impl {
     }
   } registration;
 
-  // estimate_covariances(): called by the threads that prepare scans, so it has its own buffers and
-  // lock (the default stream orders its work with the mapping thread's).
+  // estimate_covariances() is called by the threads that prepare scans, each in its own stream
+  // (kernels.cu): each call takes a set of buffers from this pool, so scans are prepared side by side.
+  struct CovarianceBuffers {
+    device::CovarianceScratch scratch;
+    std::vector<float> xyz, out;
+  };
   std::mutex covariance_mutex;
-  device::CovarianceScratch covariance_scratch;
-  std::vector<float> covariance_xyz, covariance_out;
+  std::vector<std::unique_ptr<CovarianceBuffers>> covariance_pool;
+
+  std::unique_ptr<CovarianceBuffers> take_covariance_buffers() {
+    std::lock_guard lock(covariance_mutex);
+    if (covariance_pool.empty()) return std::make_unique<CovarianceBuffers>();
+    auto b = std::move(covariance_pool.back());
+    covariance_pool.pop_back();
+    return b;
+  }
+  void give_back(std::unique_ptr<CovarianceBuffers> b) {
+    std::lock_guard lock(covariance_mutex);
+    covariance_pool.push_back(std::move(b));
+  }
 
   void release_unused() {
     for (auto it = clouds.begin(); it != clouds.end();) {
@@ -267,6 +283,7 @@ void CudaBackend::overlaps(const std::shared_ptr<const PointCloud>& source,
 RegistrationResult CudaBackend::align(const PointCloud& source, const std::shared_ptr<const GaussianVoxelMap>& target,
                                       const Eigen::Isometry3d& init_T_target_source, const RegistrationConfig& config) {
   if (source.empty() || target->num_voxels() == 0) return LinearizationBackend::align(source, target, init_T_target_source, config);
+  std::lock_guard lock(impl_->registration_mutex);
   Impl::Registration& r = impl_->registration;
   device::free_cloud(r.source);
   r.source = upload(source);
@@ -287,20 +304,21 @@ void CudaBackend::estimate_covariances(PointCloud& cloud, const CovarianceConfig
   if (config.num_neighbors < 1 || config.num_neighbors > device::kMaxNeighbors || cloud.size() > kMaxPoints)
     return LinearizationBackend::estimate_covariances(cloud, config);
   const size_t n = cloud.size();
-  std::lock_guard lock(impl_->covariance_mutex);
-  std::vector<float>& xyz = impl_->covariance_xyz;
-  std::vector<float>& out = impl_->covariance_out;
+  std::unique_ptr<Impl::CovarianceBuffers> buffers = impl_->take_covariance_buffers();
+  std::vector<float>& xyz = buffers->xyz;
+  std::vector<float>& out = buffers->out;
   xyz.resize(3 * n);
   out.resize(6 * n);
   for (size_t i = 0; i < n; ++i)
     for (int k = 0; k < 3; ++k) xyz[3 * i + k] = cloud.points[i][k];
   device::point_covariances(xyz.data(), static_cast<uint32_t>(n), config.num_neighbors, config.epsilon, config.elevation_sigma,
-                            out.data(), impl_->covariance_scratch);
+                            out.data(), buffers->scratch);
   cloud.covs.resize(n);
   for (size_t i = 0; i < n; ++i) {
     const float* c = &out[6 * i];
     cloud.covs[i] << c[0], c[1], c[2], c[1], c[3], c[4], c[2], c[4], c[5];
   }
+  impl_->give_back(std::move(buffers));
 }
 
 void CudaBackend::release_unused() { impl_->release_unused(); }

@@ -1,6 +1,7 @@
 #include <cuda_runtime.h>
 
 #include <cub/block/block_reduce.cuh>
+#include <atomic>
 #include <string>
 
 #include "gcmap/core/error.hpp"
@@ -16,22 +17,44 @@ void check(cudaError_t e, const char* what) {
   if (e != cudaSuccess) throw Error(std::string("CUDA ") + what + ": " + cudaGetErrorString(e));
 }
 
+// Each host thread works in its own stream: the scans prepared on several threads, the odometry's
+// registrations and the mapper's batches run side by side instead of queueing behind each other in
+// the legacy default stream. Memory comes from the stream-ordered pool, because cudaFree waits for
+// the whole device. Every call of this file's interface ends with its stream drained, so what one
+// call wrote is complete before another thread's stream reads or frees it.
+cudaStream_t stream() { return cudaStreamPerThread; }
+
+// Devices without the pool (some virtualized ones) allocate the plain way. Set by select_device.
+std::atomic<bool> use_pool{false};
+
+void drain(const char* what) {
+  check(cudaGetLastError(), what);
+  check(cudaStreamSynchronize(stream()), what);
+}
+
 template <class T>
 T* device_alloc(size_t n) {
   void* p = nullptr;
-  if (n > 0) check(cudaMalloc(&p, n * sizeof(T)), "cudaMalloc");
+  if (n > 0 && use_pool) check(cudaMallocAsync(&p, n * sizeof(T), stream()), "cudaMallocAsync");
+  if (n > 0 && !use_pool) check(cudaMalloc(&p, n * sizeof(T)), "cudaMalloc");
   return static_cast<T*>(p);
 }
 
 template <class T>
 void device_free(T*& p) {
-  if (p) cudaFree(p);
+  if (p) use_pool ? cudaFreeAsync(p, stream()) : cudaFree(p);
   p = nullptr;
 }
 
 template <class T>
 void upload(T* dst, const T* src, size_t n) {
-  if (n > 0) check(cudaMemcpy(dst, src, n * sizeof(T), cudaMemcpyHostToDevice), "upload");
+  if (n > 0) check(cudaMemcpyAsync(dst, src, n * sizeof(T), cudaMemcpyHostToDevice, stream()), "upload");
+}
+
+template <class T>
+void download(T* dst, const T* src, size_t n, const char* what) {
+  if (n > 0) check(cudaMemcpyAsync(dst, src, n * sizeof(T), cudaMemcpyDeviceToHost, stream()), what);
+  drain(what);
 }
 
 // What a block needs of its pair, in one struct so a block reads it with one load.
@@ -371,7 +394,19 @@ int device_count(const char** why) {
   return n;
 }
 
-void select_device(int index) { check(cudaSetDevice(index), "cudaSetDevice"); }
+void select_device(int index) {
+  check(cudaSetDevice(index), "cudaSetDevice");
+  // The stream-ordered pool where the device has one, keeping what is freed: by default every
+  // drain would hand it back to the driver and the next registration allocate afresh.
+  int pools = 0;
+  check(cudaDeviceGetAttribute(&pools, cudaDevAttrMemoryPoolsSupported, index), "cudaDeviceGetAttribute");
+  use_pool = pools != 0;
+  if (!use_pool) return;
+  cudaMemPool_t pool;
+  check(cudaDeviceGetDefaultMemPool(&pool, index), "cudaDeviceGetDefaultMemPool");
+  uint64_t keep = UINT64_MAX;
+  check(cudaMemPoolSetAttribute(pool, cudaMemPoolAttrReleaseThreshold, &keep), "cudaMemPoolSetAttribute");
+}
 
 const char* device_name() {
   static thread_local cudaDeviceProp prop;
@@ -389,6 +424,7 @@ Cloud upload_cloud(const float* xyz, const float* cov6, uint32_t n) {
   c.covs = device_alloc<float>(6 * static_cast<size_t>(n));
   upload(c.means, means.data(), means.size());
   upload(c.covs, cov6, 6 * static_cast<size_t>(n));
+  drain("upload_cloud");
   return c;
 }
 
@@ -416,12 +452,11 @@ VoxelMap upload_voxel_map(const int32_t* coords, const float* xyz, const float* 
       device_free(m.slots);
       m.slots = device_alloc<VoxelSlot>(capacity);
       m.mask = capacity - 1;
-      check(cudaMemset(m.slots, 0xff, capacity * sizeof(VoxelSlot)), "cudaMemset");  // index -1: empty
-      check(cudaMemset(d_failed, 0, sizeof(int)), "cudaMemset");
-      if (n > 0) build_table_kernel<<<num_blocks(n), kThreads>>>(m.slots, m.mask, d_coords, n, d_failed);
-      check(cudaGetLastError(), "build_table_kernel");
+      check(cudaMemsetAsync(m.slots, 0xff, capacity * sizeof(VoxelSlot), stream()), "cudaMemset");  // index -1: empty
+      check(cudaMemsetAsync(d_failed, 0, sizeof(int), stream()), "cudaMemset");
+      if (n > 0) build_table_kernel<<<num_blocks(n), kThreads, 0, stream()>>>(m.slots, m.mask, d_coords, n, d_failed);
       int failed = 0;
-      check(cudaMemcpy(&failed, d_failed, sizeof(int), cudaMemcpyDeviceToHost), "build_table_kernel");
+      download(&failed, d_failed, 1, "build_table_kernel");
       return failed == 0;
     });
     if (slots == 0)
@@ -490,6 +525,7 @@ void Batch::set_pairs(const std::vector<Cloud>& sources, const std::vector<Voxel
   poses_ = device_alloc<float>(12 * num_pairs_);
   block_sums_ = device_alloc<float>(kSums * num_blocks_);
   pair_sums_ = device_alloc<double>(kSums * num_pairs_);
+  drain("set_pairs");
   device_bytes_ = num_pairs_ * (sizeof(PairView) + sizeof(uint32_t) + 12 * sizeof(float) + kSums * sizeof(double)) +
                   num_blocks_ * (sizeof(int32_t) + sizeof(uint32_t) + kSums * sizeof(float)) + num_points_ * sizeof(int32_t);
 }
@@ -499,11 +535,10 @@ void Batch::linearize(const float* T, double* sums) {
   upload(poses_, T, 12 * num_pairs_);
   const auto* pairs = static_cast<const PairView*>(pairs_);
   if (num_blocks_ > 0)
-    linearize_kernel<<<static_cast<uint32_t>(num_blocks_), kThreads>>>(pairs, block_pair_, block_begin_, poses_, voxel_of_point_,
-                                                                       block_sums_);
-  pair_sums_kernel<<<static_cast<uint32_t>(num_pairs_), 32>>>(pair_first_block_, block_sums_, kSums, pair_sums_);
-  check(cudaGetLastError(), "linearize_kernel");
-  check(cudaMemcpy(sums, pair_sums_, kSums * num_pairs_ * sizeof(double), cudaMemcpyDeviceToHost), "linearize");
+    linearize_kernel<<<static_cast<uint32_t>(num_blocks_), kThreads, 0, stream()>>>(pairs, block_pair_, block_begin_, poses_,
+                                                                                    voxel_of_point_, block_sums_);
+  pair_sums_kernel<<<static_cast<uint32_t>(num_pairs_), 32, 0, stream()>>>(pair_first_block_, block_sums_, kSums, pair_sums_);
+  download(sums, pair_sums_, kSums * num_pairs_, "linearize");
 }
 
 void Batch::trial_errors(const float* T, double* errors) {
@@ -511,11 +546,10 @@ void Batch::trial_errors(const float* T, double* errors) {
   upload(poses_, T, 12 * num_pairs_);
   const auto* pairs = static_cast<const PairView*>(pairs_);
   if (num_blocks_ > 0)
-    trial_kernel<<<static_cast<uint32_t>(num_blocks_), kThreads>>>(pairs, block_pair_, block_begin_, poses_, voxel_of_point_,
-                                                                   block_sums_);
-  pair_sums_kernel<<<static_cast<uint32_t>(num_pairs_), 32>>>(pair_first_block_, block_sums_, 2, pair_sums_);
-  check(cudaGetLastError(), "trial_kernel");
-  check(cudaMemcpy(errors, pair_sums_, 2 * num_pairs_ * sizeof(double), cudaMemcpyDeviceToHost), "trial_errors");
+    trial_kernel<<<static_cast<uint32_t>(num_blocks_), kThreads, 0, stream()>>>(pairs, block_pair_, block_begin_, poses_,
+                                                                                voxel_of_point_, block_sums_);
+  pair_sums_kernel<<<static_cast<uint32_t>(num_pairs_), 32, 0, stream()>>>(pair_first_block_, block_sums_, 2, pair_sums_);
+  download(errors, pair_sums_, 2 * num_pairs_, "trial_errors");
 }
 
 OverlapScratch::~OverlapScratch() {
@@ -545,11 +579,10 @@ void overlap_counts(const Cloud& source, const std::vector<VoxelMap>& targets, c
   }
   upload(scratch.targets, targets.data(), nt);
   upload(scratch.poses, T, 12 * nt);
-  overlap_kernel<<<static_cast<uint32_t>(blocks), kThreads>>>(source.means, source.size, scratch.targets, scratch.poses, per_target,
-                                                              scratch.block_hits);
-  check(cudaGetLastError(), "overlap_kernel");
+  overlap_kernel<<<static_cast<uint32_t>(blocks), kThreads, 0, stream()>>>(source.means, source.size, scratch.targets,
+                                                                           scratch.poses, per_target, scratch.block_hits);
   std::vector<uint32_t> block_hits(blocks);
-  check(cudaMemcpy(block_hits.data(), scratch.block_hits, blocks * sizeof(uint32_t), cudaMemcpyDeviceToHost), "overlap");
+  download(block_hits.data(), scratch.block_hits, blocks, "overlap");
   for (size_t b = 0; b < blocks; ++b) hits[b / per_target] += block_hits[b];
 }
 
@@ -571,10 +604,9 @@ void point_covariances(const float* xyz, uint32_t n, int k, double epsilon, doub
   }
   const std::vector<float> means = padded_means(xyz, n);
   upload(scratch.means, means.data(), means.size());
-  covariance_kernel<<<num_blocks(n), kThreads>>>(reinterpret_cast<const float4*>(scratch.means), n, k, epsilon, elevation_sigma,
-                                                 scratch.covs);
-  check(cudaGetLastError(), "covariance_kernel");
-  check(cudaMemcpy(cov6, scratch.covs, 6 * static_cast<size_t>(n) * sizeof(float), cudaMemcpyDeviceToHost), "covariances");
+  covariance_kernel<<<num_blocks(n), kThreads, 0, stream()>>>(reinterpret_cast<const float4*>(scratch.means), n, k, epsilon,
+                                                              elevation_sigma, scratch.covs);
+  download(cov6, scratch.covs, 6 * static_cast<size_t>(n), "covariances");
 }
 
 }  // namespace gcmap::cuda::device

@@ -2,6 +2,8 @@
 // The seam where every factor of one LM iteration is linearized (or evaluated) in one call. The
 // CPU backend runs factors in parallel (and each factor's points in parallel); a GPU backend can
 // take the matching-cost factors as one device batch without the optimizer changing.
+// Threads: linearize, trial_errors and overlaps come from one thread at a time (the mapper's);
+// align and estimate_covariances may run beside them (the pipeline's odometry and scan preparation).
 #include <memory>
 #include <span>
 #include <string>
@@ -34,7 +36,7 @@ class LinearizationBackend {
                         std::span<const std::shared_ptr<const GaussianVoxelMap>> targets,
                         std::span<const Eigen::Isometry3d> T_target_source, std::span<double> out);
   // align_vgicp (registration/registration.hpp) of the odometry and the localizer. The default runs
-  // on the CPU; a GPU backend evaluates the points on the device. Not thread-safe on a GPU.
+  // on the CPU; a GPU backend evaluates the points on the device. Thread-safe.
   virtual RegistrationResult align(const PointCloud& source, const std::shared_ptr<const GaussianVoxelMap>& target,
                                    const Eigen::Isometry3d& init_T_target_source, const RegistrationConfig& config);
   // estimate_covariances (core/preprocess.hpp) of a scan being prepared. The default runs on the
