@@ -27,10 +27,11 @@ Mapper::Mapper(const MappingConfig& config, std::shared_ptr<LinearizationBackend
       loops_(config_.loop),
       global_(config_, backend_) {}
 
-FrameStatus Mapper::add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom) {
+FrameStatus Mapper::add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom,
+                              std::optional<KeyframeShape> shape) {
   if (frame != static_cast<int>(frames_.size())) throw Error("Mapper: frames must be numbered consecutively from 0");
   frames_.push_back({-1, T_odom});
-  SubmapBuilder::Result r = local_.add_frame(frame, cloud, T_odom);
+  SubmapBuilder::Result r = local_.add_frame(frame, cloud, T_odom, std::move(shape));
   frames_.back().anchor = r.anchor;
   if (r.closed) insert(std::move(*r.closed));
   return r.status;

@@ -23,7 +23,9 @@ class Mapper {
 
   // Feeds a preprocessed frame (with covariances) and its odometry pose. Frames come in order,
   // numbered from 0; unusable frames (nullptr or too few points) are placed by odometry only.
-  FrameStatus add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom);
+  // shape: the cloud's keyframe_shape when made ahead.
+  FrameStatus add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom,
+                        std::optional<KeyframeShape> shape = std::nullopt);
   // A frame's sweep deskewed again (SweepRevision), before the next frame is added: its odometry
   // pose, and its cloud when it is a keyframe. True when the cloud was taken; a frame whose submap
   // has closed keeps its place.

@@ -1,6 +1,7 @@
 #include "gcmap/mapping/pipeline.hpp"
 
 #include <spdlog/spdlog.h>
+#include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
@@ -68,7 +69,14 @@ MappingPipeline::MappingPipeline(const MappingConfig& config, std::shared_ptr<Li
       mapper_(config, backend_) {}
 
 PreparedScan MappingPipeline::prepare(PointCloud raw, double stamp) const {
-  return prepare_scan(std::move(raw), stamp, config_, options_, backend_.get());
+  PreparedScan out = prepare_scan(std::move(raw), stamp, config_, options_, backend_.get());
+  // Here, on any thread, rather than in the serial mapping stage, unless deskewing will change the cloud.
+  if (out.cloud && !out.cloud->empty() && !(config_.preprocess.deskew && out.cloud->has_times())) {
+    Stopwatch w;
+    out.keyframe = keyframe_shape(*out.cloud, config_);
+    out.preprocess_ms += w.ms();
+  }
+  return out;
 }
 
 PreparedScan prepare_scan(PointCloud raw, double stamp, const MappingConfig& config, const PipelineOptions& options,
@@ -102,27 +110,29 @@ Frame MappingPipeline::add_scan(PointCloud scan, double stamp, std::optional<Eig
 }
 
 Frame MappingPipeline::add_prepared(PreparedScan scan, std::optional<Eigen::Isometry3d> T_odom) {
+  return map_frame(track_frame(std::move(scan), T_odom));
+}
+
+MappingPipeline::Tracked MappingPipeline::track_frame(PreparedScan scan, std::optional<Eigen::Isometry3d> T_odom) {
   if (finished_) throw Error("add_scan: the pipeline is finished");
   if (!stamps_.empty() && scan.stamp < stamps_.back())
     throw Error("add_scan: stamp " + std::to_string(scan.stamp) + " s is before the previous scan's " +
                 std::to_string(stamps_.back()) + " s");
-  Frame f;
+  Tracked t;
+  Frame& f = t.frame;
   f.index = static_cast<int>(stamps_.size());
   f.stamp = scan.stamp;
   if (!scan.cloud) {
     spdlog::warn("skipping scan {}: {}", f.index, scan.error);
-    ++unusable_;
+    ++unusable_scans_;
   }
   preprocess_ms_.add(scan.preprocess_ms);
   Stopwatch w;
-  const SweepEstimate e = odometry_.track(scan.cloud, scan.stamp, T_odom);
+  SweepEstimate e = odometry_.track(scan.cloud, scan.stamp, T_odom);
   f.T_odom = e.T_world_frame;
   f.deskewed = e.deskewed;
   f.odometry_failed = e.failed;
-  if (e.revised) {
-    mapper_.revise_frame(e.revised->frame, e.revised->cloud, e.revised->T_world_frame);
-    odometry_poses_[e.revised->frame] = e.revised->T_world_frame;
-  }
+  if (e.revised) odometry_poses_[e.revised->frame] = e.revised->T_world_frame;
   if (f.odometry_failed) {
     spdlog::warn("scan {}: odometry failed (too few matches, or far from the prediction with little overlap), "
                  "placed by the prediction",
@@ -133,8 +143,17 @@ Frame MappingPipeline::add_prepared(PreparedScan scan, std::optional<Eigen::Isom
   stamps_.push_back(scan.stamp);
   odometry_poses_.push_back(f.T_odom);
   f.points = scan.cloud ? scan.cloud->size() : 0;
-  f.status = mapper_.add_frame(f.index, scan.cloud, f.T_odom);
-  if (f.status == FrameStatus::unusable && scan.cloud) ++unusable_;
+  t.cloud = std::move(scan.cloud);
+  if (!f.deskewed) t.keyframe = std::move(scan.keyframe);
+  t.revised = std::move(e.revised);
+  return t;
+}
+
+Frame MappingPipeline::map_frame(Tracked t) {
+  Frame& f = t.frame;
+  if (t.revised) mapper_.revise_frame(t.revised->frame, t.revised->cloud, t.revised->T_world_frame);
+  f.status = mapper_.add_frame(f.index, t.cloud, f.T_odom, std::move(t.keyframe));
+  if (f.status == FrameStatus::unusable && t.cloud) ++unusable_frames_;
   statuses_.push_back(f.status);
   f.T_world_frame = mapper_.frame_pose(f.index);
   return f;
@@ -150,7 +169,7 @@ void MappingPipeline::finish(std::optional<int> max_final_iterations) {
 PipelineStats MappingPipeline::stats() const {
   PipelineStats s;
   s.frames = stamps_.size();
-  s.unusable = unusable_;
+  s.unusable = unusable_scans_ + unusable_frames_;
   s.odometry_failures = odometry_failures_;
   s.preprocess = preprocess_ms_;
   s.odometry = odometry_ms_;
@@ -164,14 +183,17 @@ size_t MappingPipeline::run(ScanSource& source, const RunOptions& options) {
     int frame = 0;
     ScanRecord record;
     PreparedScan prepared;
+    Tracked tracked;
   };
   int next = 0;
   size_t added = 0;
   bool ended = false;
-  // The mapping stage alone cannot keep both cores busy (its LM solve, assembly and voxel-map
-  // inserts are serial), so scans are loaded and prepared ahead, up to 3 in flight.
+  // The mapping stages alone cannot keep both cores busy (LM solves, assembly and voxel-map inserts
+  // are serial), so scans are loaded and prepared ahead: 3 in flight on 2 cores, more where more
+  // threads can prepare scans side by side (with a GPU, each mostly waits on its kernel).
+  const size_t in_flight = std::max<size_t>(3, tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism) / 2);
   tbb::parallel_pipeline(
-      3,
+      in_flight,
       tbb::make_filter<void, Item>(tbb::filter_mode::serial_in_order,
                                    [&](tbb::flow_control& fc) {
                                      Item item;
@@ -198,13 +220,21 @@ size_t MappingPipeline::run(ScanSource& source, const RunOptions& options) {
                                          }
                                          return item;
                                        }) &
+          // Odometry and mapping are serial stages of their own: the odometry of one frame runs
+          // while the mapper takes the one before (the backends serve both at once). Each is
+          // isolated: while waiting for its own parallel loops, a stage must not pick up a scan
+          // being loaded and prepared (TBB lets a waiting thread steal any task), which would hold
+          // up the serial stages that bound the throughput.
+          tbb::make_filter<Item, Item>(tbb::filter_mode::serial_in_order,
+                                       [&](Item item) {
+                                         std::optional<Eigen::Isometry3d> guess;
+                                         if (options.initial_pose) guess = options.initial_pose(item.frame);
+                                         item.tracked = tbb::this_task_arena::isolate(
+                                             [&] { return track_frame(std::move(item.prepared), guess); });
+                                         return item;
+                                       }) &
           tbb::make_filter<Item, void>(tbb::filter_mode::serial_in_order, [&](Item item) {
-            std::optional<Eigen::Isometry3d> guess;
-            if (options.initial_pose) guess = options.initial_pose(item.frame);
-            // Isolated: while waiting for its own parallel loops, this stage must not pick up a
-            // scan being loaded and prepared (TBB lets a waiting thread steal any task), which
-            // would hold up the serial stage that bounds the throughput.
-            const Frame f = tbb::this_task_arena::isolate([&] { return add_prepared(std::move(item.prepared), guess); });
+            const Frame f = tbb::this_task_arena::isolate([&] { return map_frame(std::move(item.tracked)); });
             ++added;
             if (options.on_frame) options.on_frame(f);
           }));

@@ -51,6 +51,7 @@ struct PipelineStats {
 // A raw scan turned into what odometry and mapping take; made by prepare() on any thread.
 struct PreparedScan {
   std::shared_ptr<PointCloud> cloud;  // null: unusable (see error)
+  std::optional<KeyframeShape> keyframe;  // MappingPipeline::prepare's, unless the odometry will deskew the cloud
   double stamp = 0.0;
   double preprocess_ms = 0.0;
   std::string error;
@@ -90,8 +91,9 @@ class MappingPipeline {
     std::function<void(const Frame&)> on_frame;                              // after each frame
     const std::atomic<bool>* stop = nullptr;  // when set, no further scan is read
   };
-  // Feeds every scan of the source through add_prepared, loading and preparing up to 3 ahead in
-  // parallel with the mapping of earlier frames. Does not finish(). Returns the frames added.
+  // Feeds every scan of the source through add_prepared, loading and preparing scans ahead in
+  // parallel with the odometry and mapping of earlier frames, and the odometry of a frame in
+  // parallel with the mapping of the one before. Does not finish(). Returns the frames added.
   size_t run(ScanSource& source, const RunOptions& options);
 
   const MappingConfig& config() const { return config_; }
@@ -115,12 +117,24 @@ class MappingPipeline {
   MappingConfig config_;
   std::shared_ptr<LinearizationBackend> backend_;
   PipelineOptions options_;
+  // add_prepared in two halves, which run() overlaps: the odometry of one frame while the mapper takes
+  // the one before. Each half owns the members it writes.
+  struct Tracked {
+    Frame frame;
+    std::shared_ptr<PointCloud> cloud;
+    std::optional<KeyframeShape> keyframe;  // the prepared one, while the cloud was not deskewed
+    std::optional<SweepRevision> revised;
+  };
+  Tracked track_frame(PreparedScan scan, std::optional<Eigen::Isometry3d> T_odom);
+  Frame map_frame(Tracked t);
+
   SweepOdometry odometry_;
   Mapper mapper_;
   std::vector<double> stamps_;
   std::vector<FrameStatus> statuses_;
   std::vector<Eigen::Isometry3d> odometry_poses_;
-  size_t unusable_ = 0, odometry_failures_ = 0;
+  size_t unusable_scans_ = 0, odometry_failures_ = 0;  // track_frame's
+  size_t unusable_frames_ = 0;                        // map_frame's
   TimingStats preprocess_ms_, odometry_ms_;
   Stopwatch clock_;
   double seconds_ = 0.0;

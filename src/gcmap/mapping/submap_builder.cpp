@@ -26,27 +26,27 @@ PointCloud evenly_subsampled(PointCloud cloud, int n) {
 SubmapBuilder::SubmapBuilder(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend)
     : config_(config), backend_(std::move(backend)) {}
 
-SubmapBuilder::Keyframe SubmapBuilder::make_keyframe(int frame, const Eigen::Isometry3d& T_odom,
-                                                     const std::shared_ptr<const PointCloud>& cloud) const {
-  auto voxels = std::make_shared<GaussianVoxelMap>(config_.local.voxel_resolution);
-  voxels->insert(*cloud);
+KeyframeShape keyframe_shape(const PointCloud& cloud, const MappingConfig& config) {
+  auto voxels = std::make_shared<GaussianVoxelMap>(config.local.voxel_resolution);
+  voxels->insert(cloud);
   voxels->finalize();
-  ScanContext descriptor;
-  if (config_.loop.enabled) descriptor = make_scan_context(*cloud, config_.loop.scan_context);
-  return {frame, T_odom, cloud, std::move(voxels), std::move(descriptor)};
+  KeyframeShape shape{std::move(voxels), {}};
+  if (config.loop.enabled) shape.descriptor = make_scan_context(cloud, config.loop.scan_context);
+  return shape;
 }
 
 bool SubmapBuilder::revise(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom) {
   for (Keyframe& k : open_)
     if (k.frame == frame && cloud && cloud->size() >= 100) {
-      k = make_keyframe(frame, T_odom, cloud);
+      KeyframeShape shape = keyframe_shape(*cloud, config_);
+      k = {frame, T_odom, cloud, std::move(shape.voxels), std::move(shape.descriptor)};
       return true;
     }
   return false;
 }
 
 SubmapBuilder::Result SubmapBuilder::add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud,
-                                               const Eigen::Isometry3d& T_odom) {
+                                               const Eigen::Isometry3d& T_odom, std::optional<KeyframeShape> shape) {
   Result r;
   if (complete_) r.closed = close();
   r.anchor = last_keyframe_;
@@ -62,7 +62,8 @@ SubmapBuilder::Result SubmapBuilder::add_frame(int frame, const std::shared_ptr<
     // rather than joining a local graph it has no factor into.
     if (ov < config_.local.th_min) r.closed = close();
   }
-  open_.push_back(make_keyframe(frame, T_odom, cloud));
+  if (!shape) shape = keyframe_shape(*cloud, config_);
+  open_.push_back({frame, T_odom, cloud, std::move(shape->voxels), std::move(shape->descriptor)});
   r.status = FrameStatus::keyframe;
   r.anchor = last_keyframe_ = frame;
   if (open_.size() >= 2) {

@@ -16,6 +16,14 @@ namespace gcmap {
 enum class FrameStatus { keyframe, skipped, unusable };
 const char* to_string(FrameStatus status);
 
+// What a keyframe needs of its cloud alone, in the cloud's frame. The pipeline makes it while the
+// scan is prepared, in parallel, where the cloud stays as prepared (no deskewing).
+struct KeyframeShape {
+  std::shared_ptr<const GaussianVoxelMap> voxels;  // local.voxel_resolution
+  ScanContext descriptor;                          // when loop.enabled
+};
+KeyframeShape keyframe_shape(const PointCloud& cloud, const MappingConfig& config);
+
 struct LocalMappingStats {
   TimingStats factors, optimization;  // per closed submap
 };
@@ -30,8 +38,10 @@ class SubmapBuilder {
     std::optional<Submap> closed;   // a submap this frame completed
   };
   // Frames in order; a null or small cloud is unusable. A submap that a keyframe completes closes
-  // with the next frame (or close()), so that its last keyframe can still be revised.
-  Result add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom);
+  // with the next frame (or close()), so that its last keyframe can still be revised. shape: the
+  // cloud's keyframe_shape when made ahead.
+  Result add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom,
+                   std::optional<KeyframeShape> shape = std::nullopt);
   // Closes the open submap, if any.
   std::optional<Submap> close();
   // Replaces the cloud and odometry pose of a keyframe of the open submap (its sweep deskewed
@@ -45,10 +55,9 @@ class SubmapBuilder {
     int frame;
     Eigen::Isometry3d T_odom;
     std::shared_ptr<const PointCloud> cloud;
-    std::shared_ptr<GaussianVoxelMap> voxels;  // local resolution, keyframe frame
-    ScanContext descriptor;                    // when explicit loops are on
+    std::shared_ptr<const GaussianVoxelMap> voxels;  // local resolution, keyframe frame
+    ScanContext descriptor;                          // when explicit loops are on
   };
-  Keyframe make_keyframe(int frame, const Eigen::Isometry3d& T_odom, const std::shared_ptr<const PointCloud>& cloud) const;
   // Keyframe poses in the submap frame, optimized with every keyframe pair as a factor.
   std::vector<Eigen::Isometry3d> optimize_keyframes(const Eigen::Isometry3d& T_odom_submap);
   Submap merge(Submap s) const;
