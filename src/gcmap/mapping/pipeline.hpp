@@ -88,7 +88,9 @@ class MappingPipeline {
 
   struct RunOptions {
     std::function<std::optional<Eigen::Isometry3d>(int frame)> initial_pose;  // external odometry
-    std::function<void(const Frame&)> on_frame;                              // after each frame
+    // After each frame, from the mapping stage: the mapper's accessors (submaps(), factors(),
+    // mapper()) may be read there; stamps(), odometry() and stats() change meanwhile.
+    std::function<void(const Frame&)> on_frame;
     const std::atomic<bool>* stop = nullptr;  // when set, no further scan is read
   };
   // Feeds every scan of the source through add_prepared, loading and preparing scans ahead in
