@@ -35,11 +35,17 @@ KeyframeShape keyframe_shape(const PointCloud& cloud, const MappingConfig& confi
   return shape;
 }
 
+SubmapBuilder::Keyframe SubmapBuilder::make_keyframe(int frame, const Eigen::Isometry3d& T_odom,
+                                                     const std::shared_ptr<const PointCloud>& cloud,
+                                                     std::optional<KeyframeShape> shape) const {
+  if (!shape) shape = keyframe_shape(*cloud, config_);
+  return {frame, T_odom, cloud, std::move(shape->voxels), std::move(shape->descriptor)};
+}
+
 bool SubmapBuilder::revise(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom) {
   for (Keyframe& k : open_)
     if (k.frame == frame && cloud && cloud->size() >= 100) {
-      KeyframeShape shape = keyframe_shape(*cloud, config_);
-      k = {frame, T_odom, cloud, std::move(shape.voxels), std::move(shape.descriptor)};
+      k = make_keyframe(frame, T_odom, cloud, std::nullopt);
       return true;
     }
   return false;
@@ -62,8 +68,7 @@ SubmapBuilder::Result SubmapBuilder::add_frame(int frame, const std::shared_ptr<
     // rather than joining a local graph it has no factor into.
     if (ov < config_.local.th_min) r.closed = close();
   }
-  if (!shape) shape = keyframe_shape(*cloud, config_);
-  open_.push_back({frame, T_odom, cloud, std::move(shape->voxels), std::move(shape->descriptor)});
+  open_.push_back(make_keyframe(frame, T_odom, cloud, std::move(shape)));
   r.status = FrameStatus::keyframe;
   r.anchor = last_keyframe_ = frame;
   if (open_.size() >= 2) {

@@ -58,6 +58,9 @@ class SubmapBuilder {
     std::shared_ptr<const GaussianVoxelMap> voxels;  // local resolution, keyframe frame
     ScanContext descriptor;                          // when explicit loops are on
   };
+  // shape: the cloud's, when made ahead; else made here.
+  Keyframe make_keyframe(int frame, const Eigen::Isometry3d& T_odom, const std::shared_ptr<const PointCloud>& cloud,
+                         std::optional<KeyframeShape> shape) const;
   // Keyframe poses in the submap frame, optimized with every keyframe pair as a factor.
   std::vector<Eigen::Isometry3d> optimize_keyframes(const Eigen::Isometry3d& T_odom_submap);
   Submap merge(Submap s) const;
