@@ -1,3 +1,5 @@
+#include <cmath>
+
 #include "gcmap/core/error.hpp"
 #include "gcmap/graph/levenberg_marquardt.hpp"
 #include "gcmap/graph/sparse_solver.hpp"
@@ -48,6 +50,26 @@ TEST(SparseSolver, ReusedAnalysisEqualsFreshAnalysis) {
     EXPECT_EQ(reused.analyses(), 2);
     const Eigen::VectorXd y = reused.solve(rhs);
     EXPECT_LT((B.selfadjointView<Eigen::Lower>() * y - rhs).norm(), 1e-12 * rhs.norm());
+  }
+}
+
+TEST(SparseSolver, AnalysisAheadFromThePatternAloneServesTheFactorization) {
+  const Eigen::SparseMatrix<double> A = random_spd(60, 7, 8);
+  Eigen::SparseMatrix<double> pattern = A;
+  std::fill(pattern.valuePtr(), pattern.valuePtr() + pattern.nonZeros(), std::nan(""));  // not read
+  const Eigen::VectorXd rhs = Eigen::VectorXd::LinSpaced(60, -2.0, 1.0);
+  for (LinearSolver kind : built_solvers()) {
+    SCOPED_TRACE(linear_solver_name(kind));
+    SparseSolver ahead(kind);
+    EXPECT_TRUE(ahead.analyse(pattern));
+    EXPECT_FALSE(ahead.analyse(pattern));  // already analysed
+    ASSERT_TRUE(ahead.factorize(A));
+    EXPECT_EQ(ahead.analyses(), 1);
+    EXPECT_EQ(ahead.reuses(), 1);
+    SparseSolver fresh(kind);
+    ASSERT_TRUE(fresh.factorize(A));
+    const Eigen::VectorXd x = ahead.solve(rhs);
+    EXPECT_LT((x - fresh.solve(rhs)).norm(), 1e-12 * x.norm());
   }
 }
 

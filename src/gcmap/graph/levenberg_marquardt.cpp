@@ -3,6 +3,7 @@
 #include <Eigen/SparseCore>
 #include <algorithm>
 #include <cmath>
+#include <future>
 #include <optional>
 
 #include <tbb/blocked_range.h>
@@ -178,12 +179,16 @@ class LevenbergMarquardt::Iterations {
     return e;
   }
 
+  // The system's pattern and its symbolic analysis: they need no linearization, so optimize() runs
+  // this beside the first one (on the GPU backend the host would otherwise wait for the device).
+  void prepare(SparseSolver& solver) {
+    pattern_ = make_pattern(s_);
+    A_ = pattern_->H;
+    solver.analyse(A_);
+  }
+
   // H and b from the current linearizations, and H's diagonal (the damping's scale).
   void assemble(bool first) {
-    if (!pattern_) {
-      pattern_ = make_pattern(s_);
-      A_ = pattern_->H;
-    }
     gcmap::assemble(lin_, *pattern_, b_);
     const Eigen::SparseMatrix<double>& H = pattern_->H;
     diag_.resize(6 * num_vars());
@@ -285,14 +290,17 @@ LMResult LevenbergMarquardt::optimize(const FactorGraph& graph, Values& values, 
   Stopwatch total;
   LMResult result;
   Iterations it(graph, values, fixed, *backend_, result);
+  const int analyses_before = solver_.analyses();
+  std::future<void> prepared;
+  if (!it.empty()) prepared = std::async(std::launch::async, [&] { it.prepare(solver_); });
   double error = it.linearize(values);
+  if (prepared.valid()) prepared.get();
   result.initial_error = result.final_error = error;
   if (it.empty()) {
     result.converged = true;
     result.total_ms = total.ms();
     return result;
   }
-  const int analyses_before = solver_.analyses();
   for (int iter = 1; iter <= config_.max_iterations; ++iter) {
     LMIteration stats;
     stats.iteration = iter;

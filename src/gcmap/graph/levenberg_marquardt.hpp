@@ -27,7 +27,7 @@ struct LMIteration {
   int trials = 0;
   double linearize_ms = 0.0;
   double assemble_ms = 0.0;  // H and b from the factors' blocks, and the damped copies
-  double solve_ms = 0.0;     // symbolic analysis (when the pattern changed), factorizations, solves
+  double solve_ms = 0.0;     // factorizations, solves (the symbolic analysis runs beside the first linearization)
 };
 
 struct LMResult {
@@ -45,7 +45,8 @@ struct LMResult {
 
 // Levenberg-Marquardt over a block-sparse 6x6 system assembled from the factors' Hessian blocks,
 // solved by a SparseSolver (Eigen or CHOLMOD, config.linear_solver) that keeps its symbolic analysis
-// while the system's pattern stays the same, also across calls; the damping lambda carries over
+// while the system's pattern stays the same, also across calls (a new pattern is analysed on a
+// thread of its own while the first linearization runs); the damping lambda carries over
 // between calls (warm start). Correspondence policy: each iteration re-linearizes (re-associates)
 // every factor; trial steps are judged by Factor::trial_error with the association and robust
 // weights of that linearization, so the gain ratio compares like with like, and a step is accepted

@@ -62,29 +62,32 @@ SparseSolver::~SparseSolver() = default;
 SparseSolver::SparseSolver(SparseSolver&&) noexcept = default;
 SparseSolver& SparseSolver::operator=(SparseSolver&&) noexcept = default;
 
-bool SparseSolver::factorize(const SparseMatrix& A) {
-  Stopwatch w;
+bool SparseSolver::analyse(const SparseMatrix& A) {
   const auto* outer = A.outerIndexPtr();
   const auto* inner = A.innerIndexPtr();
   const size_t cols = static_cast<size_t>(A.outerSize()) + 1, nnz = static_cast<size_t>(A.nonZeros());
-  const bool same = A.isCompressed() && outer_.size() == cols && inner_.size() == nnz &&
-                    std::equal(outer_.begin(), outer_.end(), outer) && std::equal(inner_.begin(), inner_.end(), inner);
-  if (!same) {
-    if (kind_ == LinearSolver::automatic && active_ == LinearSolver::eigen && cholmod_available() &&
-        A.nonZeros() >= kAutoCholmodNonZeros)
-      use_cholmod();  // a run's systems only grow: no way back
-    std::visit([&](auto& s) { s.analyzePattern(A); }, impl_->solver);
-    outer_.clear();
-    inner_.clear();
-    if (A.isCompressed()) {  // an uncompressed matrix is analysed every time
-      outer_.assign(outer, outer + cols);
-      inner_.assign(inner, inner + nnz);
-    }
-    ++analyses_;
-    analyse_ms_ += w.lap_ms();
-  } else {
-    ++reuses_;
+  if (A.isCompressed() && outer_.size() == cols && inner_.size() == nnz && std::equal(outer_.begin(), outer_.end(), outer) &&
+      std::equal(inner_.begin(), inner_.end(), inner))
+    return false;
+  Stopwatch w;
+  if (kind_ == LinearSolver::automatic && active_ == LinearSolver::eigen && cholmod_available() &&
+      A.nonZeros() >= kAutoCholmodNonZeros)
+    use_cholmod();  // a run's systems only grow: no way back
+  std::visit([&](auto& s) { s.analyzePattern(A); }, impl_->solver);
+  outer_.clear();
+  inner_.clear();
+  if (A.isCompressed()) {  // an uncompressed matrix is analysed every time
+    outer_.assign(outer, outer + cols);
+    inner_.assign(inner, inner + nnz);
   }
+  ++analyses_;
+  analyse_ms_ += w.ms();
+  return true;
+}
+
+bool SparseSolver::factorize(const SparseMatrix& A) {
+  if (!analyse(A)) ++reuses_;
+  Stopwatch w;
   const bool ok = std::visit([&](auto& s) {
     s.factorize(A);
     return s.info() == Eigen::Success;

@@ -29,8 +29,11 @@ class SparseSolver {
   SparseSolver(SparseSolver&&) noexcept;
   SparseSolver& operator=(SparseSolver&&) noexcept;
 
-  // Factorizes A (lower triangle stored), analysing first when its pattern differs from the last
-  // analysed one (an uncompressed A is always analysed). False when A is not numerically
+  // Analyses A's pattern (lower triangle stored; its values are not read) unless it is the last
+  // one analysed; an uncompressed A is always analysed. True when the analysis ran. LM calls it
+  // ahead, beside its first linearization.
+  bool analyse(const Eigen::SparseMatrix<double>& A);
+  // Factorizes A, analysing first as analyse() does. False when A is not numerically
   // factorizable (e.g. not positive definite); the analysis is kept for the next try.
   bool factorize(const Eigen::SparseMatrix<double>& A);
   Eigen::VectorXd solve(const Eigen::VectorXd& rhs);
@@ -38,7 +41,7 @@ class SparseSolver {
   LinearSolver kind() const { return kind_; }
   // The solver in use: kind(), or what automatic chose by the last analysed system.
   LinearSolver active() const { return active_; }
-  // Analyses run and reused since construction; ms spent in each phase.
+  // Analyses run, and factorizations that found theirs ready, since construction; ms per phase.
   int analyses() const { return analyses_; }
   int reuses() const { return reuses_; }
   double analyse_ms() const { return analyse_ms_; }
