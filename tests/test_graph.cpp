@@ -60,6 +60,43 @@ TEST(MatchingCostFactor, KeptAssociationsGiveTheSameTrialErrors) {
   }
 }
 
+TEST(MatchingCostFactor, AssociationsKeptPerOptimizationAreCountedAndReleased) {
+  PointCloud target_cloud = voxel_downsample(make_structured_scene(15000, 71), 0.25);
+  estimate_covariances(target_cloud);
+  PointCloud source = voxel_downsample(make_structured_scene(15000, 72), 0.25);
+  estimate_covariances(source);
+  const auto src = std::make_shared<const PointCloud>(std::move(source));
+  const ScanNode target = make_scan_node(std::move(target_cloud), 0.5);
+  const long before = kept_associations(), n = static_cast<long>(src->size());
+  const Eigen::Isometry3d T0 = Eigen::Isometry3d::Identity(), T1(Eigen::Translation3d(0.03, -0.02, 0.01));
+  const Eigen::Isometry3d* at_lin[2] = {&T0, &T0};
+  const Eigen::Isometry3d* at_trial[2] = {&T1, &T0};
+  MatchingCostFactor looked_up(1, 0, src, target.voxels);
+  FactorLinearization lin;
+  looked_up.linearize(at_lin, lin);
+  {
+    MatchingCostFactor f(1, 0, src, target.voxels, TrialVoxels::kept_per_optimization);
+    f.linearize(at_lin, lin);
+    EXPECT_EQ(kept_associations(), before + n);
+    f.linearize(at_lin, lin);  // again before the release: counted once
+    EXPECT_EQ(kept_associations(), before + n);
+    EXPECT_EQ(f.trial_error(at_trial), looked_up.trial_error(at_trial));
+    f.release_trial_state();
+    EXPECT_EQ(kept_associations(), before);
+    EXPECT_EQ(f.trial_error(at_trial), looked_up.trial_error(at_trial));  // looked up again
+    f.linearize(at_lin, lin);
+    EXPECT_EQ(kept_associations(), before + n);
+  }
+  EXPECT_EQ(kept_associations(), before);  // the destructor releases
+
+  // LevenbergMarquardt releases them when its call ends.
+  FactorGraph graph;
+  graph.add(std::make_shared<MatchingCostFactor>(1, 0, src, target.voxels, TrialVoxels::kept_per_optimization));
+  Values values{{0, T0}, {1, T1}};
+  LevenbergMarquardt(LMConfig{}).optimize(graph, values, {0});
+  EXPECT_EQ(kept_associations(), before);
+}
+
 TEST(RelativePoseFactor, JacobianMatchesNumeric) {
   std::mt19937_64 rng(9);
   const Eigen::Isometry3d Ti = test::random_pose(rng, 1.0, 5.0), Tj = test::random_pose(rng, 1.0, 5.0);

@@ -1,5 +1,6 @@
 #include "gcmap/graph/factors.hpp"
 
+#include <atomic>
 #include <cmath>
 
 #include "gcmap/registration/vgicp.hpp"
@@ -12,9 +13,29 @@ MatchingCostFactor::MatchingCostFactor(int source_key, int target_key, std::shar
   keys_ = {source_key, target_key};
 }
 
+namespace {
+std::atomic<long> kept_points{0};
+}  // namespace
+
+long kept_associations() { return kept_points.load(); }
+
+MatchingCostFactor::~MatchingCostFactor() { release_trial_state(); }
+
+void MatchingCostFactor::release_trial_state() {
+  if (counted_ == 0) return;
+  kept_points -= counted_;
+  counted_ = 0;
+  std::vector<int>().swap(associations_);
+}
+
 void MatchingCostFactor::linearize(const Eigen::Isometry3d* const* poses, FactorLinearization& out) {
   T_lin_ = poses[1]->inverse() * *poses[0];
-  const bool keep = trial_voxels_ == TrialVoxels::kept;
+  if (trial_voxels_ == TrialVoxels::kept_per_optimization && counted_ == 0) {
+    const long n = static_cast<long>(source_->size());
+    if (kept_points.fetch_add(n) + n <= kMaxKeptAssociations) counted_ = n;
+    else kept_points -= n;
+  }
+  const bool keep = trial_voxels_ == TrialVoxels::kept || counted_ > 0;
   to_factor_linearization(keep ? linearize_vgicp(*source_, *target_, T_lin_, associations_)
                                : linearize_vgicp(*source_, *target_, T_lin_),
                           out);

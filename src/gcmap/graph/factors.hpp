@@ -37,6 +37,9 @@ class Factor {
   // Worth keeping its last linearization for reuse while its poses barely move (graph/lazy_backend.hpp);
   // such a factor's cost must depend on the relative pose T_1^-1 T_0 of its keys only.
   virtual bool reusable() const { return false; }
+  // Frees what linearize() kept for the trials that follow it; LevenbergMarquardt calls it when an
+  // optimize() call ends.
+  virtual void release_trial_state() {}
 
   // The linearization a lazy backend keeps, with the poses it was taken at.
   struct Kept {
@@ -54,10 +57,16 @@ struct VgicpLinearization;
 void to_factor_linearization(const VgicpLinearization& lin, FactorLinearization& out);
 
 // How a MatchingCostFactor's trial errors find the voxels of its last linearization: looked up
-// again, or kept from it (4 bytes per source point for the factor's life: for graphs that live only
-// through one optimization). The lookups are over half of a trial: 0.50 ms against 0.23 ms for a
-// loop scan of 25.7k points on its predecessor's 0.5 m voxels, one thread.
-enum class TrialVoxels { look_up, kept };
+// again, or kept from it, 4 bytes per source point: for the factor's life (kept: graphs that live
+// only through one optimization), or until its optimize() call ends (kept_per_optimization: the
+// global graph). The latter share a process-wide cap of kMaxKeptAssociations points (256 MB), which
+// bounds a final optimization that re-linearizes every factor of a long drive; beyond it, factors
+// look up. The lookups are over half of a trial: 0.50 ms against 0.23 ms for a loop scan of 25.7k
+// points on its predecessor's 0.5 m voxels, one thread. Trial errors are the same either way.
+enum class TrialVoxels { look_up, kept, kept_per_optimization };
+constexpr long kMaxKeptAssociations = 1L << 26;
+// Points whose voxels kept_per_optimization factors hold now.
+long kept_associations();
 
 // VGICP matching cost between a source cloud (key i) and a target voxel map (key j), paper Eq. 1-6.
 // Association and fused covariances are recomputed at every linearization; trial errors keep that
@@ -66,10 +75,14 @@ class MatchingCostFactor : public Factor {
  public:
   MatchingCostFactor(int source_key, int target_key, std::shared_ptr<const PointCloud> source,
                      std::shared_ptr<const GaussianVoxelMap> target, TrialVoxels trial_voxels = TrialVoxels::look_up);
+  ~MatchingCostFactor() override;
+  MatchingCostFactor(const MatchingCostFactor&) = delete;
+  MatchingCostFactor& operator=(const MatchingCostFactor&) = delete;
   int num_keys() const override { return 2; }
   void linearize(const Eigen::Isometry3d* const* poses, FactorLinearization& out) override;
   double trial_error(const Eigen::Isometry3d* const* poses) const override;
   bool reusable() const override { return true; }
+  void release_trial_state() override;
 
   const PointCloud& source() const { return *source_; }
   const GaussianVoxelMap& target() const { return *target_; }
@@ -81,7 +94,8 @@ class MatchingCostFactor : public Factor {
   std::shared_ptr<const GaussianVoxelMap> target_;
   Eigen::Isometry3d T_lin_ = Eigen::Isometry3d::Identity();  // T_target_source at the last linearization
   TrialVoxels trial_voxels_;
-  std::vector<int> associations_;  // TrialVoxels::kept: each source point's voxel at T_lin_
+  std::vector<int> associations_;  // kept: each source point's voxel at T_lin_
+  long counted_ = 0;               // kept_per_optimization: points of associations_ under the cap
 };
 
 // SE(3) constraint T_i^-1 T_j ~ measured, error = log(measured^-1 T_i^-1 T_j) whitened by a 6x6

@@ -165,6 +165,11 @@ class LevenbergMarquardt::Iterations {
     lin_.resize(factors_.size());
     trial_.resize(factors_.size());
   }
+  ~Iterations() {
+    for (Factor* f : factors_) f->release_trial_state();
+  }
+  Iterations(const Iterations&) = delete;
+  Iterations& operator=(const Iterations&) = delete;
 
   int num_vars() const { return static_cast<int>(s_.keys.size()); }
   bool empty() const { return s_.keys.empty() || factors_.empty(); }

@@ -168,7 +168,8 @@ int GlobalMapper::connect_overlapping(int id, int first) {
                   std::make_shared<RelativePoseFactor>(j, id, r.T_target_source, r.H, RobustKernel::huber(10.0))});
     } else {
       add_factor({FactorKind::matching_cost, id, j, t.overlap,
-                  std::make_shared<MatchingCostFactor>(id, j, cur.factor_source, submaps_[j].voxels)});
+                  std::make_shared<MatchingCostFactor>(id, j, cur.factor_source, submaps_[j].voxels,
+                                                         TrialVoxels::kept_per_optimization)});
     }
   }
   return static_cast<int>(kept.size());

@@ -139,7 +139,8 @@ void add_session_factors(const MergeInput& s, int offset, FactorGraph& graph, st
   for (const FactorRecord& f : s.factors) {
     const int source = offset + f.source, target = offset + f.target;
     if (f.kind == FactorKind::matching_cost) {
-      graph.add(std::make_shared<MatchingCostFactor>(source, target, s.submaps[f.source].factor_source, s.submaps[f.target].voxels));
+      graph.add(std::make_shared<MatchingCostFactor>(source, target, s.submaps[f.source].factor_source, s.submaps[f.target].voxels,
+                                                     TrialVoxels::kept_per_optimization));
     } else {
       const Eigen::Isometry3d T_target_source = s.T_world_submap[f.target].inverse() * s.T_world_submap[f.source];
       graph.add(std::make_shared<RelativePoseFactor>(target, source, T_target_source, odometry_factor_information()));
@@ -176,7 +177,8 @@ size_t add_cross_factors(const std::vector<const Submap*>& submaps, const std::v
     if (near.empty()) continue;
     for (const TargetOverlap& t : overlapping_targets(backend, submaps[u]->factor_source, targets, T_target_source, config.global.th_min)) {
       const int v = near[t.index];
-      graph.add(std::make_shared<MatchingCostFactor>(static_cast<int>(u), v, submaps[u]->factor_source, submaps[v]->voxels));
+      graph.add(std::make_shared<MatchingCostFactor>(static_cast<int>(u), v, submaps[u]->factor_source, submaps[v]->voxels,
+                                                   TrialVoxels::kept_per_optimization));
       records.push_back({FactorKind::matching_cost, static_cast<int>(u), v, t.overlap});
       ++added;
     }
