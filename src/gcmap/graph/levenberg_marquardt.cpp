@@ -283,12 +283,12 @@ std::optional<LevenbergMarquardt::Step> LevenbergMarquardt::damped_step(Iteratio
 
 bool LevenbergMarquardt::converged(double error, const Step& step) const {
   const double decrease = error - step.error;
-  // Converged also when a nearly undamped step gained what the quadratic model predicted to within
-  // the tolerance: the next step would gain about that model error, so it is not worth its
+  // Converged also when a small, nearly undamped step gained what the quadratic model predicted to
+  // within the tolerance: the next step would gain about that model error, so it is not worth its
   // linearization (mostly the confirming second iteration of a warm-started insertion).
   const double tol = config_.relative_error_tol * std::max(step.error, 1e-12);
   return decrease < tol || step.max_delta < config_.step_tol ||
-         (step.lambda <= 1e-3 && std::abs(decrease - step.predicted) < tol);
+         (step.lambda <= 1e-3 && step.max_delta <= config_.predicted_stop_step && std::abs(decrease - step.predicted) < tol);
 }
 
 LMResult LevenbergMarquardt::optimize(const FactorGraph& graph, Values& values, const std::set<int>& fixed) {
