@@ -28,17 +28,27 @@ TEST(RobustKernel, HandComputedWeights) {
   EXPECT_THROW(RobustKernel::parse("cauchy", 1.0, 0.0), Error);
 }
 
+// A structured scene (0.25 m apart) as the target at the origin on 0.5 m voxels and as the source
+// seen from a random T_truth; equal seeds sample the same points.
+struct ScenePair {
+  Eigen::Isometry3d T_truth;
+  std::shared_ptr<const PointCloud> source;
+  ScanNode target;
+};
+ScenePair scene_pair(std::mt19937_64& rng, uint64_t target_seed, uint64_t source_seed) {
+  PointCloud target = voxel_downsample(make_structured_scene(15000, target_seed), 0.25);
+  estimate_covariances(target);
+  const Eigen::Isometry3d T_truth = test::random_pose(rng, 0.1, 1.0);
+  PointCloud source = transformed(voxel_downsample(make_structured_scene(15000, source_seed), 0.25), T_truth.inverse());
+  estimate_covariances(source);
+  return {T_truth, std::make_shared<const PointCloud>(std::move(source)), make_scan_node(std::move(target), 0.5)};
+}
+
 // Kept associations must give exactly the trial errors of looking the voxels up again at the
 // linearization's pose, and those must differ from a fresh association where points change voxels.
 TEST(MatchingCostFactor, KeptAssociationsGiveTheSameTrialErrors) {
   std::mt19937_64 rng(17);
-  PointCloud target_cloud = voxel_downsample(make_structured_scene(15000, 71), 0.25);
-  estimate_covariances(target_cloud);
-  const Eigen::Isometry3d T_truth = test::random_pose(rng, 0.1, 1.0);
-  PointCloud source = transformed(voxel_downsample(make_structured_scene(15000, 72), 0.25), T_truth.inverse());
-  estimate_covariances(source);
-  const auto src = std::make_shared<const PointCloud>(std::move(source));
-  const ScanNode target = make_scan_node(std::move(target_cloud), 0.5);
+  const auto [T_truth, src, target] = scene_pair(rng, 71, 72);
   MatchingCostFactor looked_up(1, 0, src, target.voxels), kept(1, 0, src, target.voxels, TrialVoxels::kept);
   const Eigen::Isometry3d T0 = Eigen::Isometry3d::Identity();
   const Eigen::Isometry3d T_lin = T_truth * test::random_pose(rng, 0.02, 0.05);
@@ -217,14 +227,9 @@ TEST(LevenbergMarquardt, StopsOnceTheModelPredictsTheGainAndLosesAtMostTheTolera
 // may stop on it.
 TEST(LevenbergMarquardt, LargeStepsThatGainedWhatTheyPredictedGoOn) {
   std::mt19937_64 rng(29);
-  PointCloud target_cloud = voxel_downsample(make_structured_scene(15000, 81), 0.25);
-  estimate_covariances(target_cloud);
-  const Eigen::Isometry3d T_truth = test::random_pose(rng, 0.1, 1.0);
-  PointCloud source = transformed(voxel_downsample(make_structured_scene(15000, 81), 0.25), T_truth.inverse());
-  estimate_covariances(source);
+  const auto [T_truth, source, target] = scene_pair(rng, 81, 81);
   FactorGraph graph;
-  graph.add(std::make_shared<MatchingCostFactor>(1, 0, std::make_shared<const PointCloud>(std::move(source)),
-                                                 make_scan_node(std::move(target_cloud), 0.5).voxels));
+  graph.add(std::make_shared<MatchingCostFactor>(1, 0, source, target.voxels));
   // Elsewhere in the graph: two contradicting measurements of pose 3 against the fixed pose 2,
   // already balanced at the start, hold a constant error.
   for (double x : {-3.0, 3.0}) {
