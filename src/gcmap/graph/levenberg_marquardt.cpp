@@ -200,7 +200,7 @@ class LevenbergMarquardt::Iterations {
     for (int k = 0; k < 6 * num_vars(); ++k) diag_[k] = H.valuePtr()[H.outerIndexPtr()[k]];
     if (!first) return;
     for (int v = 0; v < num_vars(); ++v)
-      if (!(diag_.segment<6>(6 * v).sum() > 0.0))
+      if (pattern_->var_first[v + 1] == pattern_->var_first[v])
         throw Error("pose " + std::to_string(s_.keys[v]) + " is not constrained by any factor (singular system)");
   }
 
@@ -209,7 +209,10 @@ class LevenbergMarquardt::Iterations {
     Stopwatch wa;
     const Eigen::SparseMatrix<double>& H = pattern_->H;
     std::copy(H.valuePtr(), H.valuePtr() + H.nonZeros(), A_.valuePtr());
-    for (int k = 0; k < 6 * num_vars(); ++k) A_.valuePtr()[A_.outerIndexPtr()[k]] += lambda * std::max(diag_[k], 1e-6);
+    // A pose whose factors give no information here (a loop's kernel at zero weight, a matching
+    // cost without correspondences) has a zero row in H: a unit diagonal keeps it where it is.
+    for (int k = 0; k < 6 * num_vars(); ++k)
+      A_.valuePtr()[A_.outerIndexPtr()[k]] += diag_[k] > 0.0 ? lambda * std::max(diag_[k], 1e-6) : 1.0;
     stats.assemble_ms += wa.ms();
     Stopwatch w;
     const bool factorized = solver.factorize(A_);

@@ -61,7 +61,8 @@ class LevenbergMarquardt {
   explicit LevenbergMarquardt(LMConfig config = {}, std::shared_ptr<LinearizationBackend> backend = nullptr);
 
   // Optimizes the non-fixed poses in place. Throws Error when a factor references a missing pose or
-  // a free pose is not constrained by any factor (the system would be singular).
+  // no factor touches a free pose (the system would be singular). A pose whose factors give no
+  // information at the current estimate stays where it is.
   LMResult optimize(const FactorGraph& graph, Values& values, const std::set<int>& fixed = {});
 
   const LMConfig& config() const { return config_; }
