@@ -163,6 +163,16 @@ void Odometry::accept(const std::shared_ptr<const PointCloud>& frame, const Eige
     return;
   }
   set_pose(T, stamp);
+  // Frames placed by the prediction in a row: the model no longer explains the scans (the
+  // recording jumped elsewhere, or the odometry slipped). Searching on from rest against it let
+  // `city` driven twice in a row (a jump back to the start) run away at up to 50 m per frame for
+  // 760 frames: along a street a wrong velocity confirms itself. The next usable frame starts a
+  // new model at the prediction instead, as at the start of a drive.
+  if (failed_streak_ >= kMaxFailedStreak) {
+    keyframes_.clear();
+    model_.reset();
+    return;
+  }
   const Eigen::Isometry3d delta = keyframes_.back().first.inverse() * T;
   if (delta.translation().norm() > config_.keyframe_distance ||
       rotation_angle(delta) > config_.keyframe_angle_deg * M_PI / 180.0) {

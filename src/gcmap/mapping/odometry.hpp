@@ -19,8 +19,10 @@ class Odometry {
 
   // T_world_frame of a preprocessed frame (with covariances) taken at `stamp` (s). A frame too
   // small to register (empty or dropped scan) gets the prediction and *ok = false; a frame whose
-  // registration fails (see estimate) gets the prediction and last_failed(). The model keeps the
-  // frame: it must not change afterwards (it is subtracted from the model as it ages out).
+  // registration fails (see estimate) gets the prediction and last_failed(); after 3 such frames in
+  // a row the model is dropped, and the next usable frame starts a new one at the prediction. The
+  // model keeps the frame: it must not change afterwards (it is subtracted from the model as it
+  // ages out).
   Eigen::Isometry3d track(const std::shared_ptr<const PointCloud>& frame, std::optional<double> stamp = std::nullopt,
                           bool* ok = nullptr);
   // What a prediction rests on: no motion known (the second frame, after a gap of
@@ -29,7 +31,7 @@ class Odometry {
   enum class Guess { rest, steady, scaled };
   Guess guess_kind(std::optional<double> stamp = std::nullopt) const;
   // The two halves of track() for a usable frame: scan-to-model registration from a guess (no
-  // state change), then the accepted pose and possibly a new keyframe of the model.
+  // state change), then the accepted pose and possibly a new keyframe of the model (or no model).
   // From rest, the search starts on odometry.start_voxel_resolution and its result is taken.
   // Otherwise a registration matching fewer than odometry.retry_inlier_fraction of the points
   // (and, from a steady guess, landing over odometry.retry_distance from it) is retried from zero

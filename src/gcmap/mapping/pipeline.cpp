@@ -139,6 +139,10 @@ MappingPipeline::Tracked MappingPipeline::track_frame(PreparedScan scan, std::op
                  f.index);
     ++odometry_failures_;
   }
+  if (e.lost)
+    spdlog::warn("scan {}: odometry lost (scans in a row placed by the prediction): a new local model starts "
+                 "at the next scan",
+                 f.index);
   odometry_ms_.add(w.lap_ms());
   stamps_.push_back(scan.stamp);
   odometry_poses_.push_back(f.T_odom);

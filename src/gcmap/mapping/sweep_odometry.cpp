@@ -50,6 +50,7 @@ SweepEstimate SweepOdometry::track(const std::shared_ptr<PointCloud>& cloud, dou
   }
   if (!e.deskewed || T_odom) previous_mean_.reset(), before_previous_.reset(), previous_.reset();
   if (first_ && frames_ > first_->frame) first_.reset();  // only the next frame restarts
+  e.lost = e.failed && !odometry_.has_model();
   last_.emplace(e.T_world_frame, stamp);
   ++frames_;
   return e;

@@ -21,6 +21,7 @@ struct SweepEstimate {
   Eigen::Isometry3d T_world_frame = Eigen::Isometry3d::Identity();  // at the scan stamp
   bool deskewed = false;
   bool failed = false;  // registration rejected (see Odometry::estimate): placed by the prediction
+  bool lost = false;    // the last of failed frames in a row: the next usable frame starts a new model
   // At the second frame, the first sweep (it entered the odometry's model smeared); later, the
   // previous sweep, once this one is registered (see SweepOdometry::revise_previous).
   std::optional<SweepRevision> revised;
