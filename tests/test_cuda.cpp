@@ -18,8 +18,9 @@
 #include "gcmap/graph/matching_graph.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/trajectory_io.hpp"
-#include "gcmap/mapping/odometry.hpp"
-#include "gcmap/mapping/preprocess_scan.hpp"
+#include "gcmap/mapping/config.hpp"
+#include "gcmap/odometry/odometry.hpp"
+#include "gcmap/odometry/preprocess_scan.hpp"
 #include "gcmap/sim/simulator.hpp"
 #include "test_util.hpp"
 

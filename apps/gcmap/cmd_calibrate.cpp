@@ -1,5 +1,5 @@
 // gcmap calibrate: per-beam elevation offsets of a spinning LiDAR from a recording and the
-// trajectory of a mapping run on it (mapping/elevation_calibration.hpp).
+// trajectory of a mapping run on it (calibration/elevation_calibration.hpp).
 #include <spdlog/spdlog.h>
 #include <tbb/parallel_for.h>
 
@@ -12,7 +12,7 @@
 #include "gcmap/core/se3.hpp"
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/trajectory_io.hpp"
-#include "gcmap/mapping/elevation_calibration.hpp"
+#include "gcmap/calibration/elevation_calibration.hpp"
 #include "gcmap/mapping/pipeline.hpp"
 #include "map_runner.hpp"
 #include "progress.hpp"
@@ -41,7 +41,7 @@ void add_batch(const std::vector<Pending>& batch, const Trajectory& traj, const 
     const int f = batch[k].frame;
     PreparedScan p;
     try {
-      p = prepare_scan(batch[k].record.load(), batch[k].record.stamp, config, options);
+      p = prepare_scan(batch[k].record.load(), batch[k].record.stamp, config.preprocess, options);
     } catch (const Error& e) {
       spdlog::warn("skipping scan {}: {}", f, e.what());
       return;

@@ -2,7 +2,7 @@
 #include <filesystem>
 
 #include "commands.hpp"
-#include "gcmap/io/session.hpp"
+#include "gcmap/session/session.hpp"
 
 namespace gcmap::cli {
 

@@ -15,7 +15,7 @@
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/sequence.hpp"
-#include "gcmap/io/session.hpp"
+#include "gcmap/session/session.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "gcmap/mapping/pipeline.hpp"
 #include "gcmap/mapping/report.hpp"

@@ -61,8 +61,8 @@ void to_factor_linearization(const VgicpLinearization& lin, FactorLinearization&
 // only through one optimization), or until its optimize() call ends (kept_per_optimization: the
 // global graph). The latter share a process-wide cap of kMaxKeptAssociations points (256 MB), which
 // bounds a final optimization that re-linearizes every factor of a long drive; beyond it, factors
-// look up. The lookups are over half of a trial: 0.50 ms against 0.23 ms for a loop scan of 25.7k
-// points on its predecessor's 0.5 m voxels, one thread. Trial errors are the same either way.
+// look up. The lookups are most of a trial's cost (docs/benchmarks.md); trial errors are the same
+// either way.
 enum class TrialVoxels { look_up, kept, kept_per_optimization };
 constexpr long kMaxKeptAssociations = 1L << 26;
 // Points whose voxels kept_per_optimization factors hold now.

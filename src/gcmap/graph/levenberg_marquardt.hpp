@@ -20,7 +20,7 @@ struct LMConfig {
   // A nearly undamped step that gained what its model predicted also stops, where its largest
   // component [rad, m] is at most this. A larger step moves points into other voxels, and the next
   // linearization finds more to gain: without the bound a matching-cost graph took one ICP-like
-  // step per call (city's revisits crept over ~20 insertions, ~1000 factors re-linearized at each).
+  // step per call, and a revisit crept over many insertions, each re-linearizing much of the graph.
   double predicted_stop_step = 0.01;
   LinearSolver linear_solver = LinearSolver::automatic;
 };

@@ -11,10 +11,8 @@ namespace gcmap {
 // eigen: Eigen's simplicial LDL^T. cholmod: CHOLMOD's supernodal LL^T (SuiteSparse), in builds that
 // found it; its speed is the system BLAS's. automatic ("auto", the default): eigen for systems with
 // fewer than kAutoCholmodNonZeros stored non-zeros, cholmod from there on where the build has it;
-// by size, not by timing, so that every run of a drive makes the same choice. bench_graph on 2 cores
-// with OpenBLAS, factorization cholmod/eigen: 1.3-1.8x below 100k non-zeros (one lap, 100-300
-// submaps, under 14 ms), on par at 148k (900 submaps in a line), 0.41x on city (294 submaps, 183k),
-// 0.11-0.24x at 1,000 synthetic submaps (262k-649k), 0.15x on city three times (880 submaps, 643k).
+// by size, not by timing, so that every run of a drive makes the same choice. The threshold is where
+// bench_graph's factorization times cross (docs/pipeline.md).
 enum class LinearSolver { eigen, cholmod, automatic };
 const char* linear_solver_name(LinearSolver solver);
 constexpr long kAutoCholmodNonZeros = 120000;

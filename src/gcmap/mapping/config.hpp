@@ -1,12 +1,16 @@
 #pragma once
-// One config struct per module with the paper's defaults (Koide et al., RA-L 2021), loadable
-// from YAML. Every key is optional; an unknown key is an error naming it.
+// The one config of a run: a section per module with the paper's defaults (Koide et al., RA-L
+// 2021), loadable from YAML. Every key is optional; an unknown key is an error naming it. The
+// modules below mapping/ define their own sections (PreprocessConfig, OdometryConfig, LoopConfig);
+// the sections of mapping/ and of the session commands above it are defined here.
 #include <string>
 #include <variant>
 #include <vector>
 
 #include "gcmap/graph/sparse_solver.hpp"
-#include "gcmap/mapping/scan_context.hpp"
+#include "gcmap/loop/loop_closure.hpp"
+#include "gcmap/odometry/odometry.hpp"
+#include "gcmap/odometry/preprocess_scan.hpp"
 
 namespace gcmap {
 
@@ -25,59 +29,6 @@ const char* to_string(LinearSolver solver);  // "eigen", "cholmod"
 // Throws Error naming `key` when the text is none of the names.
 GlobalMode parse_global_mode(const std::string& text, const std::string& key);
 FactorSource parse_factor_source(const std::string& text, const std::string& key);
-
-struct PreprocessConfig {
-  double min_range = 2.0;  // m: drops returns from the ego vehicle
-  double max_range = 100.0;
-  double downsample = 0.25;  // voxel size in m
-  int num_neighbors = 10;    // covariance estimation
-  // Beam elevation uncertainty added to each point's covariance (range x sigma along the beam's
-  // vertical plane): a sensor with a per-beam elevation bias (factory calibration) makes far
-  // ground lie off its plane by range x bias. 0 = off.
-  double elevation_sigma_deg = 0.0;
-  // A file of per-beam elevation offsets (`gcmap calibrate`, mapping/elevation_calibration.hpp)
-  // applied to every raw scan; empty: none.
-  std::string elevation_calibration;
-  bool kitti_vertical_correction = true;  // 0.22 deg intrinsic correction, KITTI layouts only
-  bool remove_dynamic_labels = true;      // SemanticKITTI moving classes, when labels/ exists
-  // Motion compensation of scans with per-point times, by the motion the odometry registers over
-  // the sweep (a velocity that changes linearly).
-  bool deskew = true;
-  // Each sweep deskewed again once the next one is registered, by the quadratic through the poses
-  // on both sides of it (interpolated, no longer extrapolated), for the map and the odometry's model.
-  bool redeskew = true;
-  // Scans without per-point times from a spinning sensor: times from each point's azimuth
-  // atan2(y, x), t = sweep_period * (the fraction of the turn since sweep_start_deg). The defaults
-  // follow the point order of KITTI's HDL-64 files: each ring starts facing forward (+x, 0 deg) and
-  // its azimuth increases, counter-clockwise seen from above.
-  bool deskew_from_azimuth = false;
-  double sweep_period = 0.1;  // s per turn
-  double sweep_start_deg = 0.0;
-  bool sweep_clockwise = false;
-};
-
-struct OdometryConfig {
-  double voxel_resolution = 1.0;  // scan-to-model VGICP
-  int model_keyframes = 10;       // recent keyframes in the local model
-  double keyframe_distance = 1.0; // m
-  double keyframe_angle_deg = 10.0;
-  int max_iterations = 32;
-  // Constant-velocity prediction on real stamps: the last motion scaled by (this interval / the
-  // last), at most max_interval_ratio; after a gap over max_gap s no motion is predicted.
-  double max_interval_ratio = 10.0;
-  double max_gap = 2.0;  // s
-  // A registration matching fewer than retry_inlier_fraction of the points is retried (zero
-  // motion, coarser voxels); if it still does and lands over retry_distance m from the prediction,
-  // the frame is placed by the prediction. In our simulated drives good matches reach 0.89-0.96.
-  double retry_distance = 1.0;
-  double retry_inlier_fraction = 0.7;
-  // Before any motion is known (the second frame, or after a gap of max_gap) the guess is standing
-  // still, which a scan-to-scan cost on 1 m voxels confirms even at 27 m/s: the ground rings of
-  // one sensor pose fall on themselves, and road-parallel structure does not object. The search
-  // starts on voxels this large (m), where the rings blur into a plane (4 m is not enough on a
-  // simulated highway with a per-beam elevation bias).
-  double start_voxel_resolution = 8.0;
-};
 
 struct LocalMappingConfig {
   double th_max = 0.95;   // skip a frame whose overlap with the last keyframe exceeds this
@@ -112,30 +63,6 @@ struct GlobalMappingConfig {
   // Points of a submap used as the source of its matching-cost factors and overlaps (an even
   // subsample; target voxel maps keep every point). The global graph's cost is linear in it.
   int factor_source_points = 20000;
-};
-
-// Explicit loops (paper Section III-C): ScanContext candidates between keyframes, GICP
-// verification of the submap pair, an SE(3) constraint with a shifted Tukey kernel.
-struct LoopConfig {
-  bool enabled = true;
-  ScanContextConfig scan_context;
-  int exclude_recent = 5;                 // submaps before the current one that are not searched
-  int num_candidates = 10;                // ring-key neighbours matched in full
-  double max_descriptor_distance = 0.15;  // strict: a false loop costs more than a missed one
-  double verification_downsample = 0.5;  // m, both submaps before GICP
-  double inlier_distance = 0.3;          // m, after GICP
-  // Strict, and the plane distance decides: in our simulated street grid (2 cm range noise), wrong
-  // blocks rotated by 90 or 180 degrees aligned 0.60-0.74 of points at 3.3-6.6 cm, true revisits
-  // 0.72-0.95 at 2.0-2.7 cm. Scale max_inlier_rmse with the sensor's noise.
-  double min_inlier_fraction = 0.6;
-  double max_inlier_rmse = 0.03;  // m, point-to-plane
-  // Constant information of the constraint (sigmas), and the shifted Tukey kernel on its whitened
-  // residual r: with the defaults the pull peaks at r = 1000 (10 m of translation), fades to zero
-  // below r = 5 (5 cm: the matching-cost factors decide) and above r = 1995 (grossly wrong).
-  double rotation_sigma_deg = 0.05;
-  double translation_sigma = 0.01;  // m
-  double tukey_width = 990025.0;    // w: zero weight where |r - offset| >= sqrt(w)
-  double tukey_offset = 1000.0;
 };
 
 // Localization on a prior map (gcmap localize).

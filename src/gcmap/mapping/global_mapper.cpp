@@ -2,7 +2,7 @@
 
 #include <tbb/parallel_for.h>
 
-#include "gcmap/mapping/loop_closure.hpp"
+#include "gcmap/loop/loop_closure.hpp"
 #include "gcmap/registration/gicp.hpp"
 #include "gcmap/registration/registration.hpp"
 #include "gcmap/registration/vgicp.hpp"
@@ -35,14 +35,16 @@ Matrix6d odometry_factor_information() {
   return info;
 }
 
-GlobalMapper::GlobalMapper(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend)
+GlobalMapper::GlobalMapper(const GlobalMappingConfig& config, const LoopConfig& loop,
+                           std::shared_ptr<LinearizationBackend> backend)
     : config_(config),
+      loop_(loop),
       backend_(std::move(backend)),
-      lazy_(config.global.relinearize == Relinearize::moved
-                ? std::make_shared<LazyBackend>(backend_, config.global.relinearize_threshold)
+      lazy_(config.relinearize == Relinearize::moved
+                ? std::make_shared<LazyBackend>(backend_, config.relinearize_threshold)
                 : nullptr),
-      lm_(lm_config(config.global, config.global.max_iterations, config.global.relative_error_tol), lm_backend()) {
-  if (lazy_) lazy_->set_max_relinearizations(static_cast<size_t>(config.global.max_relinearizations));
+      lm_(lm_config(config, config.max_iterations, config.relative_error_tol), lm_backend()) {
+  if (lazy_) lazy_->set_max_relinearizations(static_cast<size_t>(config.max_relinearizations));
 }
 
 std::shared_ptr<LinearizationBackend> GlobalMapper::lm_backend() const {
@@ -84,7 +86,7 @@ void GlobalMapper::insert(Submap s, LoopDetector* loops) {
   }
 
   Stopwatch w;
-  const int first = config_.global.mode == GlobalMode::sliding_window ? std::max(0, id - config_.global.window) : 0;
+  const int first = config_.mode == GlobalMode::sliding_window ? std::max(0, id - config_.window) : 0;
   connected_.assign(id, 0);
   if (connect_overlapping(id, first) == 0) {
     // Only where the submap would otherwise be disconnected.
@@ -94,8 +96,8 @@ void GlobalMapper::insert(Submap s, LoopDetector* loops) {
   }
   stats_.factors.add(w.lap_ms());
   std::optional<LoopRecord> loop;
-  if (loops && config_.loop.enabled && config_.global.mode == GlobalMode::full) loop = loops->detect(id, submaps_);
-  if (loop) add_factor({FactorKind::loop, id, loop->target, 0.0, make_loop_factor(loop->target, id, loop->T_target_source, config_.loop)});
+  if (loops && loop_.enabled && config_.mode == GlobalMode::full) loop = loops->detect(id, submaps_);
+  if (loop) add_factor({FactorKind::loop, id, loop->target, 0.0, make_loop_factor(loop->target, id, loop->T_target_source, loop_)});
   w.lap_ms();  // loop time is counted in its own statistics
   // A verified loop says the estimate was off where it closes, so the revisit factors made at that
   // estimate may sit in a wrong minimum: the loop first steers without them.
@@ -130,7 +132,7 @@ void GlobalMapper::optimize(const FactorGraph& graph, GlobalMappingStats::PerSub
 
 FactorGraph GlobalMapper::without_revisit_factors() const {
   const auto revisit = [&](const GlobalFactor& f) {
-    return f.kind != FactorKind::loop && f.kind != FactorKind::odometry && std::abs(f.source - f.target) > config_.loop.exclude_recent;
+    return f.kind != FactorKind::loop && f.kind != FactorKind::odometry && std::abs(f.source - f.target) > loop_.exclude_recent;
   };
   FactorGraph steer;
   std::vector<char> constrained(submaps_.size(), 0);
@@ -156,10 +158,10 @@ int GlobalMapper::connect_overlapping(int id, int first) {
     targets.push_back(submaps_[j].voxels);
     T_target_source.push_back(values_.at(j).inverse() * values_.at(id));
   }
-  const std::vector<TargetOverlap> kept = overlapping_targets(*backend_, cur.factor_source, targets, T_target_source, config_.global.th_min);
+  const std::vector<TargetOverlap> kept = overlapping_targets(*backend_, cur.factor_source, targets, T_target_source, config_.th_min);
   for (const TargetOverlap& t : kept) {
     const int j = candidates[t.index];
-    if (config_.global.factor == FactorSource::se3) {
+    if (config_.factor == FactorSource::se3) {
       // Ablation "Proposed (SE3)": a relative-pose constraint from kNN GICP scan matching with the
       // Hessian as information and a Huber kernel.
       const GicpTarget target(submaps_[j].cloud);
@@ -176,15 +178,15 @@ int GlobalMapper::connect_overlapping(int id, int first) {
 }
 
 void GlobalMapper::optimize_final(std::optional<int> max_iterations) {
-  const int iterations = max_iterations ? std::min(*max_iterations, config_.global.final_iterations) : config_.global.final_iterations;
+  const int iterations = max_iterations ? std::min(*max_iterations, config_.final_iterations) : config_.final_iterations;
   if (factors_.empty() || iterations <= 0) return;
-  LevenbergMarquardt final_lm(lm_config(config_.global, iterations), lm_backend());
+  LevenbergMarquardt final_lm(lm_config(config_, iterations), lm_backend());
   if (lazy_) lazy_->set_max_relinearizations(0);  // what insertions deferred is caught up here
   Stopwatch w;
   stats_.final_iterations = final_lm.optimize(graph(), values_, {0}).iterations;
   stats_.final_optimization_ms = w.ms();
   stats_.optimization.add(stats_.final_optimization_ms);
-  if (lazy_) lazy_->set_max_relinearizations(static_cast<size_t>(config_.global.max_relinearizations));
+  if (lazy_) lazy_->set_max_relinearizations(static_cast<size_t>(config_.max_relinearizations));
   count_linearizations();
 }
 

@@ -54,7 +54,8 @@ struct GlobalMappingStats {
 
 class GlobalMapper {
  public:
-  GlobalMapper(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend);
+  // Of loop: whether explicit loops are on, exclude_recent and the loop constraint.
+  GlobalMapper(const GlobalMappingConfig& config, const LoopConfig& loop, std::shared_ptr<LinearizationBackend> backend);
 
   // Inserts the next submap (ids in order), connects and optimizes it; `loops` (may be null) is
   // asked for an explicit loop in full mode.
@@ -84,7 +85,8 @@ class GlobalMapper {
   // (kept where a submap has nothing else).
   FactorGraph without_revisit_factors() const;
 
-  MappingConfig config_;
+  GlobalMappingConfig config_;
+  LoopConfig loop_;
   std::shared_ptr<LinearizationBackend> backend_;
   std::shared_ptr<LazyBackend> lazy_;  // between LM and backend_ when global.relinearize is moved
   std::vector<Submap> submaps_;

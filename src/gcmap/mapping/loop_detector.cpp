@@ -1,6 +1,6 @@
 #include "gcmap/mapping/loop_detector.hpp"
 
-#include "gcmap/mapping/loop_closure.hpp"
+#include "gcmap/loop/loop_closure.hpp"
 
 namespace gcmap {
 

@@ -5,7 +5,7 @@
 #include <vector>
 
 #include "gcmap/core/timer.hpp"
-#include "gcmap/mapping/config.hpp"
+#include "gcmap/loop/loop_closure.hpp"
 #include "gcmap/mapping/submap.hpp"
 
 namespace gcmap {

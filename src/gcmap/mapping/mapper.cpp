@@ -23,9 +23,9 @@ const MappingConfig& validated(const MappingConfig& config) {
 Mapper::Mapper(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend)
     : config_(validated(config)),
       backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
-      local_(config_, backend_),
+      local_(config_.local, config_.global, config_.loop, backend_),
       loops_(config_.loop),
-      global_(config_, backend_) {}
+      global_(config_.global, config_.loop, backend_) {}
 
 FrameStatus Mapper::add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom,
                               std::optional<KeyframeShape> shape) {

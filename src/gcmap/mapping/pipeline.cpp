@@ -10,7 +10,7 @@
 #include <cmath>
 
 #include "gcmap/core/error.hpp"
-#include "gcmap/mapping/preprocess_scan.hpp"
+#include "gcmap/odometry/preprocess_scan.hpp"
 
 namespace gcmap {
 
@@ -65,21 +65,21 @@ MappingPipeline::MappingPipeline(const MappingConfig& config, std::shared_ptr<Li
     : config_(config),
       backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
       options_(with_elevation_calibration(std::move(options), config.preprocess)),
-      odometry_(config, backend_),
+      odometry_(config.odometry, config.preprocess, backend_),
       mapper_(config, backend_) {}
 
 PreparedScan MappingPipeline::prepare(PointCloud raw, double stamp) const {
-  PreparedScan out = prepare_scan(std::move(raw), stamp, config_, options_, backend_.get());
+  PreparedScan out = prepare_scan(std::move(raw), stamp, config_.preprocess, options_, backend_.get());
   // Here, on any thread, rather than in the serial mapping stage, unless deskewing will change the cloud.
   if (out.cloud && !out.cloud->empty() && !(config_.preprocess.deskew && out.cloud->has_times())) {
     Stopwatch w;
-    out.keyframe = keyframe_shape(*out.cloud, config_);
+    out.keyframe = keyframe_shape(*out.cloud, config_.local, config_.loop);
     out.preprocess_ms += w.ms();
   }
   return out;
 }
 
-PreparedScan prepare_scan(PointCloud raw, double stamp, const MappingConfig& config, const PipelineOptions& options,
+PreparedScan prepare_scan(PointCloud raw, double stamp, const PreprocessConfig& config, const PipelineOptions& options,
                           LinearizationBackend* backend) {
   Stopwatch w;
   PreparedScan out;
@@ -92,13 +92,13 @@ PreparedScan prepare_scan(PointCloud raw, double stamp, const MappingConfig& con
     spdlog::warn("scan at {:.6f} s: {} labels for {} points, ignored", stamp, raw.labels.size(), raw.size());
     raw.labels.clear();
   }
-  if (config.preprocess.deskew_from_azimuth && !raw.has_times()) times_from_azimuth(raw, config.preprocess);
-  if (config.preprocess.remove_dynamic_labels && raw.has_labels()) remove_moving_labels(raw);
+  if (config.deskew_from_azimuth && !raw.has_times()) times_from_azimuth(raw, config);
+  if (config.remove_dynamic_labels && raw.has_labels()) remove_moving_labels(raw);
   raw.labels.clear();  // not averaged per voxel: nothing downstream reads them
-  if (options.kitti_hdl64 && config.preprocess.kitti_vertical_correction) kitti_vertical_correction(raw);
+  if (options.kitti_hdl64 && config.kitti_vertical_correction) kitti_vertical_correction(raw);
   if (options.elevation_calibration) options.elevation_calibration->correct(raw);
   // Range filtering drops NaN points too; what is left of a NaN-only scan is empty (unusable).
-  out.cloud = std::make_shared<PointCloud>(preprocess_scan(raw, config.preprocess, backend));
+  out.cloud = std::make_shared<PointCloud>(preprocess_scan(raw, config, backend));
   out.preprocess_ms = w.ms();
   return out;
 }

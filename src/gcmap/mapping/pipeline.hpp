@@ -8,9 +8,9 @@
 #include <optional>
 
 #include "gcmap/core/scan_source.hpp"
-#include "gcmap/mapping/elevation_calibration.hpp"
+#include "gcmap/calibration/elevation_calibration.hpp"
 #include "gcmap/mapping/mapper.hpp"
-#include "gcmap/mapping/sweep_odometry.hpp"
+#include "gcmap/odometry/sweep_odometry.hpp"
 
 namespace gcmap {
 
@@ -63,7 +63,7 @@ struct PreparedScan {
 void times_from_azimuth(PointCloud& cloud, const PreprocessConfig& config);
 
 // backend (may be null: the CPU) estimates the covariances.
-PreparedScan prepare_scan(PointCloud raw, double stamp, const MappingConfig& config, const PipelineOptions& options,
+PreparedScan prepare_scan(PointCloud raw, double stamp, const PreprocessConfig& config, const PipelineOptions& options,
                           LinearizationBackend* backend = nullptr);
 
 class MappingPipeline {

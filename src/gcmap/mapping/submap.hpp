@@ -4,7 +4,7 @@
 #include <vector>
 
 #include "gcmap/core/gaussian_voxel_map.hpp"
-#include "gcmap/mapping/scan_context.hpp"
+#include "gcmap/loop/scan_context.hpp"
 
 namespace gcmap {
 

@@ -23,22 +23,23 @@ PointCloud evenly_subsampled(PointCloud cloud, int n) {
   return cloud.selected(keep);  // not filter(): submaps keep their clouds, so no spare capacity
 }
 
-SubmapBuilder::SubmapBuilder(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend)
-    : config_(config), backend_(std::move(backend)) {}
+SubmapBuilder::SubmapBuilder(const LocalMappingConfig& local, const GlobalMappingConfig& global, const LoopConfig& loop,
+                             std::shared_ptr<LinearizationBackend> backend)
+    : config_(local), global_(global), loop_(loop), backend_(std::move(backend)) {}
 
-KeyframeShape keyframe_shape(const PointCloud& cloud, const MappingConfig& config) {
-  auto voxels = std::make_shared<GaussianVoxelMap>(config.local.voxel_resolution);
+KeyframeShape keyframe_shape(const PointCloud& cloud, const LocalMappingConfig& local, const LoopConfig& loop) {
+  auto voxels = std::make_shared<GaussianVoxelMap>(local.voxel_resolution);
   voxels->insert(cloud);
   voxels->finalize();
   KeyframeShape shape{std::move(voxels), {}};
-  if (config.loop.enabled) shape.descriptor = make_scan_context(cloud, config.loop.scan_context);
+  if (loop.enabled) shape.descriptor = make_scan_context(cloud, loop.scan_context);
   return shape;
 }
 
 SubmapBuilder::Keyframe SubmapBuilder::make_keyframe(int frame, const Eigen::Isometry3d& T_odom,
                                                      const std::shared_ptr<const PointCloud>& cloud,
                                                      std::optional<KeyframeShape> shape) const {
-  if (!shape) shape = keyframe_shape(*cloud, config_);
+  if (!shape) shape = keyframe_shape(*cloud, config_, loop_);
   return {frame, T_odom, cloud, std::move(shape->voxels), std::move(shape->descriptor)};
 }
 
@@ -60,13 +61,13 @@ SubmapBuilder::Result SubmapBuilder::add_frame(int frame, const std::shared_ptr<
   if (!open_.empty()) {
     const Keyframe& last = open_.back();
     const double ov = overlap(*cloud, *last.voxels, last.T_odom.inverse() * T_odom);
-    if (ov > config_.local.th_max) {
+    if (ov > config_.th_max) {
       r.status = FrameStatus::skipped;
       return r;
     }
     // After a gap (dropped scans) the frame may not overlap the submap at all: it starts a new one
     // rather than joining a local graph it has no factor into.
-    if (ov < config_.local.th_min) r.closed = close();
+    if (ov < config_.th_min) r.closed = close();
   }
   open_.push_back(make_keyframe(frame, T_odom, cloud, std::move(shape)));
   r.status = FrameStatus::keyframe;
@@ -74,7 +75,7 @@ SubmapBuilder::Result SubmapBuilder::add_frame(int frame, const std::shared_ptr<
   if (open_.size() >= 2) {
     const Keyframe& first = open_.front();
     const double ov = overlap(*cloud, *first.voxels, first.T_odom.inverse() * T_odom);
-    complete_ = ov < config_.local.th_min || static_cast<int>(open_.size()) >= config_.local.max_keyframes;
+    complete_ = ov < config_.th_min || static_cast<int>(open_.size()) >= config_.max_keyframes;
   }
   return r;
 }
@@ -88,16 +89,16 @@ std::vector<Eigen::Isometry3d> SubmapBuilder::optimize_keyframes(const Eigen::Is
     Stopwatch w;
     FactorGraph g;
     for (int b = 1; b < n; ++b) {
-      auto source = config_.local.factor_source_points > 0
-                        ? std::make_shared<const PointCloud>(evenly_subsampled(*open_[b].cloud, config_.local.factor_source_points))
+      auto source = config_.factor_source_points > 0
+                        ? std::make_shared<const PointCloud>(evenly_subsampled(*open_[b].cloud, config_.factor_source_points))
                         : open_[b].cloud;
       for (int a = 0; a < b; ++a)
         g.add(std::make_shared<MatchingCostFactor>(b, a, source, open_[a].voxels, TrialVoxels::kept));
     }
     stats_.factors.add(w.lap_ms());
     LMConfig lc;
-    lc.max_iterations = config_.local.max_iterations;
-    lc.relative_error_tol = config_.local.relative_error_tol;
+    lc.max_iterations = config_.max_iterations;
+    lc.relative_error_tol = config_.relative_error_tol;
     LevenbergMarquardt(lc, backend_).optimize(g, local, {0});
     stats_.optimization.add(w.lap_ms());
   }
@@ -115,7 +116,7 @@ std::optional<Submap> SubmapBuilder::close() {
   s.T_submap_keyframe = optimize_keyframes(s.T_odom);
   for (Keyframe& k : open_) {
     s.keyframes.push_back(k.frame);
-    if (config_.loop.enabled) s.descriptors.push_back(std::move(k.descriptor));
+    if (loop_.enabled) s.descriptors.push_back(std::move(k.descriptor));
   }
   s = merge(std::move(s));
   open_.clear();
@@ -130,12 +131,12 @@ Submap SubmapBuilder::merge(Submap s) const {
     merged.points.insert(merged.points.end(), c.points.begin(), c.points.end());
     merged.covs.insert(merged.covs.end(), c.covs.begin(), c.covs.end());
   }
-  merged = voxel_downsample(merged, config_.local.submap_downsample);
-  merged = evenly_subsampled(std::move(merged), config_.local.max_submap_points);
-  auto voxels = std::make_shared<GaussianVoxelMap>(config_.global.voxel_resolution);
+  merged = voxel_downsample(merged, config_.submap_downsample);
+  merged = evenly_subsampled(std::move(merged), config_.max_submap_points);
+  auto voxels = std::make_shared<GaussianVoxelMap>(global_.voxel_resolution);
   voxels->insert(merged);
   voxels->finalize();
-  s.factor_source = std::make_shared<const PointCloud>(evenly_subsampled(merged, config_.global.factor_source_points));
+  s.factor_source = std::make_shared<const PointCloud>(evenly_subsampled(merged, global_.factor_source_points));
   s.cloud = std::make_shared<const PointCloud>(std::move(merged));
   s.voxels = voxels;
   return s;

@@ -22,7 +22,7 @@ struct KeyframeShape {
   std::shared_ptr<const GaussianVoxelMap> voxels;  // local.voxel_resolution
   ScanContext descriptor;                          // when loop.enabled
 };
-KeyframeShape keyframe_shape(const PointCloud& cloud, const MappingConfig& config);
+KeyframeShape keyframe_shape(const PointCloud& cloud, const LocalMappingConfig& local, const LoopConfig& loop);
 
 struct LocalMappingStats {
   TimingStats factors, optimization;  // per closed submap
@@ -30,7 +30,10 @@ struct LocalMappingStats {
 
 class SubmapBuilder {
  public:
-  SubmapBuilder(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend);
+  // Of global: the submap voxel maps' resolution and factor_source_points; of loop: the keyframe
+  // descriptors (enabled, scan_context).
+  SubmapBuilder(const LocalMappingConfig& local, const GlobalMappingConfig& global, const LoopConfig& loop,
+                std::shared_ptr<LinearizationBackend> backend);
 
   struct Result {
     FrameStatus status = FrameStatus::unusable;
@@ -65,7 +68,9 @@ class SubmapBuilder {
   std::vector<Eigen::Isometry3d> optimize_keyframes(const Eigen::Isometry3d& T_odom_submap);
   Submap merge(Submap s) const;
 
-  MappingConfig config_;
+  LocalMappingConfig config_;
+  GlobalMappingConfig global_;
+  LoopConfig loop_;
   std::shared_ptr<LinearizationBackend> backend_;
   std::vector<Keyframe> open_;
   bool complete_ = false;  // the open submap closes with the next frame

@@ -1,4 +1,4 @@
-#include "gcmap/mapping/localizer.hpp"
+#include "gcmap/session/localizer.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
@@ -8,7 +8,7 @@
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/se3.hpp"
-#include "gcmap/mapping/loop_closure.hpp"
+#include "gcmap/loop/loop_closure.hpp"
 
 namespace gcmap {
 
@@ -27,7 +27,7 @@ Localizer::Localizer(std::shared_ptr<const PriorMap> prior, const MappingConfig&
       config_(config),
       backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
       options_(with_elevation_calibration(std::move(options), config.preprocess)),
-      odometry_(config_, backend_) {
+      odometry_(config_.odometry, config_.preprocess, backend_) {
   config_.validate();
   if (!prior_ || prior_->submaps.empty()) throw Error("localize: the prior map has no submaps");
   for (const Submap& s : prior_->submaps) {
@@ -139,13 +139,13 @@ LocalizedFrame Localizer::add_scan(PointCloud scan, double stamp) {
     // Across a gap dead reckoning would place the frame anywhere, and the map may well hold it
     // there too (streets repeat); the odometry's model lies behind. Both start again: the next
     // pose comes from the map's places.
-    odometry_ = SweepOdometry(config_, backend_);
+    odometry_ = SweepOdometry(config_.odometry, config_.preprocess, backend_);
     initial_.reset();
     localized_once_ = false;
     lost_since_ = 0;
   }
   // Deskewed in place by the odometry: registered on the map, it gives the pose at the stamp.
-  const std::shared_ptr<PointCloud> cloud = prepare_scan(std::move(scan), stamp, config_, options_, backend_.get()).cloud;
+  const std::shared_ptr<PointCloud> cloud = prepare_scan(std::move(scan), stamp, config_.preprocess, options_, backend_.get()).cloud;
   const SweepEstimate sweep = odometry_.track(cloud, stamp);
   odometry_poses_.push_back(sweep.T_world_frame);
   f.deskewed = sweep.deskewed;

@@ -1,4 +1,4 @@
-#include "gcmap/mapping/odometry.hpp"
+#include "gcmap/odometry/odometry.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -164,10 +164,9 @@ void Odometry::accept(const std::shared_ptr<const PointCloud>& frame, const Eige
   }
   set_pose(T, stamp);
   // Frames placed by the prediction in a row: the model no longer explains the scans (the
-  // recording jumped elsewhere, or the odometry slipped). Searching on from rest against it let
-  // `city` driven twice in a row (a jump back to the start) run away at up to 50 m per frame for
-  // 760 frames: along a street a wrong velocity confirms itself. The next usable frame starts a
-  // new model at the prediction instead, as at the start of a drive.
+  // recording jumped elsewhere, or the odometry slipped). Searching on from rest against it can run
+  // away for hundreds of frames: along a street a wrong velocity confirms itself. The next usable
+  // frame starts a new model at the prediction instead, as at the start of a drive.
   if (failed_streak_ >= kMaxFailedStreak) {
     keyframes_.clear();
     model_.reset();

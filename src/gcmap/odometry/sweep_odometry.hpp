@@ -4,8 +4,8 @@
 #include <memory>
 #include <optional>
 
-#include "gcmap/mapping/config.hpp"
-#include "gcmap/mapping/odometry.hpp"
+#include "gcmap/odometry/odometry.hpp"
+#include "gcmap/odometry/preprocess_scan.hpp"
 
 namespace gcmap {
 
@@ -29,7 +29,9 @@ struct SweepEstimate {
 
 class SweepOdometry {
  public:
-  SweepOdometry(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend);
+  // Reads preprocess.deskew and preprocess.redeskew of the preprocess section.
+  SweepOdometry(const OdometryConfig& config, const PreprocessConfig& preprocess,
+                std::shared_ptr<LinearizationBackend> backend);
 
   // The pose of a prepared scan (null: unusable, placed by the prediction) at `stamp`, stamps
   // non-decreasing. A scan with per-point times is deskewed in place into the sensor frame at the
@@ -58,7 +60,7 @@ class SweepOdometry {
     Eigen::Isometry3d T_stamp(double t) const { return T_anchor(0.0).inverse() * T_anchor(t); }
   };
   // `mean` with the previous sweep's mean velocity: linear in time (constant without one), at the
-  // stamp (anchored at the mean point time instead, loop t_rel was the same).
+  // stamp (anchoring it at the mean point time instead made no difference).
   SweepMotion sweep_motion(const MeanVelocity& mean, double stamp) const;
 
   // The first sweep entered the model as it came; with the first motion registered (smeared

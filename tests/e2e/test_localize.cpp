@@ -7,7 +7,7 @@
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/eval/trajectory_metrics.hpp"
-#include "gcmap/mapping/localizer.hpp"
+#include "gcmap/session/localizer.hpp"
 #include "gcmap/sim/simulator.hpp"
 #include "test_util.hpp"
 

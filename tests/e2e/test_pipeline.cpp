@@ -119,7 +119,7 @@ TEST_F(SmallDrive, RunGetsWhatScanByScanGets) {
   MappingPipeline one_by_one{config};
   std::vector<Frame> expected;
   for (size_t f = 0; f < kFrames; ++f) {
-    PreparedScan prepared = prepare_scan(load(f), 0.1 * f, config, PipelineOptions{});
+    PreparedScan prepared = prepare_scan(load(f), 0.1 * f, config.preprocess, PipelineOptions{});
     ASSERT_FALSE(prepared.keyframe);
     expected.push_back(one_by_one.add_prepared(std::move(prepared)));
   }

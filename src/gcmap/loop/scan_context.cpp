@@ -1,4 +1,4 @@
-#include "gcmap/mapping/scan_context.hpp"
+#include "gcmap/loop/scan_context.hpp"
 
 #include <nanoflann.hpp>
 #include <tbb/blocked_range.h>

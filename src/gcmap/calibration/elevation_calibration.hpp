@@ -1,8 +1,7 @@
 #pragma once
 // Per-beam elevation correction of a spinning LiDAR. A factory calibration off by 0.1 to 0.2 deg
 // per beam lifts or sinks a ring of far ground by 9 to 17 cm at 50 m; the rings travel with the
-// sensor, so every scan sees the ground bent the same way and the odometry pitches as it goes (700
-// realistic `city` frames: global t_rel 1.19 %, 0.24 % with the simulator's own offsets). Scans
+// sensor, so every scan sees the ground bent the same way and the odometry pitches as it goes. Scans
 // registered as they go cannot tell this bend from their own pitch (the ground far ahead was only
 // ever seen from farther), so the offsets are estimated from scans placed by a trajectory: each
 // point against the level ground that the scans saw from close by. A trajectory that does not share

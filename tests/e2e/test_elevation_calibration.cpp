@@ -7,7 +7,7 @@
 #include <limits>
 
 #include "gcmap/core/error.hpp"
-#include "gcmap/mapping/elevation_calibration.hpp"
+#include "gcmap/calibration/elevation_calibration.hpp"
 #include "gcmap/mapping/pipeline.hpp"
 #include "gcmap/sim/simulator.hpp"
 #include "test_util.hpp"
@@ -67,7 +67,7 @@ TEST(ElevationCalibration, EstimateRecoversTheSimulatedBeamErrorsOfFarGround) {
   const sim::Calibration truth = sim::make_calibration(simulator.sensor(), sc.seed);
   std::vector<CalibrationScan> scans(50);
   tbb::parallel_for(size_t{0}, scans.size(), [&](size_t k) {
-    PreparedScan p = prepare_scan(simulator.scan(3 * k), 0.0, MappingConfig{}, {});
+    PreparedScan p = prepare_scan(simulator.scan(3 * k), 0.0, PreprocessConfig{}, {});
     scans[k].bins = ElevationCalibration::bins(*p.cloud);
     scans[k].T_world_sensor = simulator.poses().front().inverse() * simulator.poses()[3 * k];
     scans[k].cloud = std::move(*p.cloud);
@@ -100,7 +100,7 @@ TEST(ElevationCalibration, WallsLevelATrajectoryThatPitchesAsItGoes) {
   std::vector<CalibrationScan> scans(50);
   std::vector<Eigen::Isometry3d> truth(scans.size());
   tbb::parallel_for(size_t{0}, scans.size(), [&](size_t k) {
-    PreparedScan p = prepare_scan(simulator.scan(3 * k), 0.0, MappingConfig{}, {});
+    PreparedScan p = prepare_scan(simulator.scan(3 * k), 0.0, PreprocessConfig{}, {});
     scans[k].bins = ElevationCalibration::bins(*p.cloud);
     scans[k].cloud = std::move(*p.cloud);
     truth[k] = simulator.poses().front().inverse() * simulator.poses()[3 * k];
@@ -146,7 +146,7 @@ TEST(ElevationCalibration, OffsetsKeepTheHeightOfAMiscalibratedDrive) {
   const sim::Simulator simulator(sc);
   std::vector<CalibrationScan> scans(kFrames / 3);
   tbb::parallel_for(size_t{0}, scans.size(), [&](size_t k) {
-    PreparedScan p = prepare_scan(simulator.scan(3 * k), 0.0, MappingConfig{}, {});
+    PreparedScan p = prepare_scan(simulator.scan(3 * k), 0.0, PreprocessConfig{}, {});
     scans[k].bins = ElevationCalibration::bins(*p.cloud);
     scans[k].T_world_sensor = simulator.poses().front().inverse() * simulator.poses()[3 * k];
     scans[k].cloud = std::move(*p.cloud);

@@ -1,4 +1,4 @@
-#include "gcmap/mapping/loop_closure.hpp"
+#include "gcmap/loop/loop_closure.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <cmath>

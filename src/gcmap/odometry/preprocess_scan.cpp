@@ -1,4 +1,4 @@
-#include "gcmap/mapping/preprocess_scan.hpp"
+#include "gcmap/odometry/preprocess_scan.hpp"
 
 #include <cmath>
 

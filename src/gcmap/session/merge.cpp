@@ -1,4 +1,4 @@
-#include "gcmap/mapping/merge.hpp"
+#include "gcmap/session/merge.hpp"
 
 #include <algorithm>
 #include <limits>
@@ -11,7 +11,7 @@
 #include "gcmap/core/timer.hpp"
 #include "gcmap/graph/factor_graph.hpp"
 #include "gcmap/mapping/global_mapper.hpp"
-#include "gcmap/mapping/loop_closure.hpp"
+#include "gcmap/loop/loop_closure.hpp"
 #include "gcmap/mapping/loop_detector.hpp"
 
 namespace gcmap {

@@ -10,7 +10,7 @@
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/io/file.hpp"
-#include "gcmap/io/session.hpp"
+#include "gcmap/session/session.hpp"
 #include "gcmap/sim/simulator.hpp"
 #include "test_util.hpp"
 

@@ -1,4 +1,4 @@
-#include "gcmap/io/session.hpp"
+#include "gcmap/session/session.hpp"
 
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>

@@ -1,4 +1,4 @@
-#include "gcmap/mapping/sweep_odometry.hpp"
+#include "gcmap/odometry/sweep_odometry.hpp"
 
 #include <algorithm>
 
@@ -17,11 +17,12 @@ double mean_time(const PointCloud& cloud) {
 
 }  // namespace
 
-SweepOdometry::SweepOdometry(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend)
-    : config_(config.odometry),
+SweepOdometry::SweepOdometry(const OdometryConfig& config, const PreprocessConfig& preprocess,
+                             std::shared_ptr<LinearizationBackend> backend)
+    : config_(config),
       backend_(std::move(backend)),
-      deskew_(config.preprocess.deskew),
-      redeskew_(config.preprocess.redeskew),
+      deskew_(preprocess.deskew),
+      redeskew_(preprocess.redeskew),
       odometry_(config_, backend_) {}
 
 SweepEstimate SweepOdometry::track(const std::shared_ptr<PointCloud>& cloud, double stamp,
@@ -84,9 +85,8 @@ std::optional<SweepRevision> SweepOdometry::revise_previous(const SweepReference
   m.acceleration = (u0 * x2 - u2 * x0) / det;
   m.anchor = p.reference.stamp - p.stamp;
   const Eigen::Isometry3d T_world_frame = p.reference.pose * m.T_anchor(0.0);
-  // A revision that moves no point at 50 m by a centimetre is left out: on the calibrated city it
-  // only added registration noise (t_rel 0.0637 % revising every sweep, 0.0625 % with this, 0.0627 %
-  // never) and 2 ms per frame; on loop at 15 m/s it changed nothing.
+  // A revision that moves no point at 50 m by a centimetre is left out: below that it only adds
+  // registration noise and costs a keyframe rebuild.
   double shift = 0.0;
   const float last = *std::max_element(p.raw.times.begin(), p.raw.times.end());
   for (const double t : {0.0, m.anchor, static_cast<double>(last)}) {
@@ -97,7 +97,7 @@ std::optional<SweepRevision> SweepOdometry::revise_previous(const SweepReference
   auto cloud = std::make_shared<PointCloud>(p.raw);
   deskew(*cloud, m.velocity, m.acceleration, m.anchor);
   // The frame's pose moves onto the curve as well: the keyframe's starting point in the local
-  // optimization (kept at the pose it was tracked at, loop t_rel was 0.0114 % against 0.0099 %).
+  // optimization (kept at the pose it was tracked at, the drive came out less accurate).
   const SweepRevision r{p.frame, cloud, T_world_frame};
   odometry_.revise_keyframe(*p.cloud, cloud, r.T_world_frame);
   return r;
@@ -107,8 +107,8 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
   // A deskewed sweep registers best at the mean time of its points: an error of the assumed motion
   // moves earlier and later points in opposite directions. The motion between these instants of
   // the previous and this sweep is the mean velocity there; with the previous sweep's, it gives the
-  // acceleration over the sweep (on loop at 15 m/s, global t_rel 0.014-0.015 % against 0.021-0.024 %
-  // with a constant velocity). First the prediction, then that registered motion, refined twice.
+  // acceleration over the sweep (more accurate than a constant velocity at speed, docs/pipeline.md).
+  // First the prediction, then that registered motion, refined twice.
   PointCloud raw = *cloud;
   const double t_mean = mean_time(raw);
   SweepEstimate e;
@@ -157,7 +157,7 @@ SweepOdometry::SweepMotion SweepOdometry::sweep_motion(const MeanVelocity& mean,
   SweepMotion m;
   const double between = previous_mean_ ? mean.time - previous_mean_->time : 0.0;
   // Half the acceleration the two give: in full it fed registration noise back into the next sweep
-  // and, on loop at 15 m/s (seed 2), swung out of a corner and diverged. Mean velocities closer
+  // and could swing out of a fast corner and diverge. Mean velocities closer
   // than a quarter of a 10 Hz sweep would amplify their noise.
   if (between > 0.025) m.acceleration = 0.5 * (mean.velocity - previous_mean_->velocity) / between;
   m.velocity = mean.velocity - (mean.time - stamp) * m.acceleration;

@@ -15,7 +15,7 @@
 
 namespace gcmap {
 
-// One session as merge takes it (io/session reads it from disk).
+// One session as merge takes it (session/session.hpp reads it from disk).
 struct MergeInput {
   std::string name;  // for messages (its folder)
   std::vector<Submap> submaps;  // clouds, voxel maps, factor sources, keyframe descriptors

@@ -1,4 +1,4 @@
-#include "gcmap/mapping/elevation_calibration.hpp"
+#include "gcmap/calibration/elevation_calibration.hpp"
 
 #include <tbb/parallel_for.h>
 

@@ -154,9 +154,9 @@ TEST(AzimuthTimes, MonotoneOverTheTurnAndWithinOnePeriod) {
 TEST(AzimuthTimes, SetOnlyWhenEnabledAndAbsent) {
   MappingConfig config;
   PointCloud c = ring(0.0, false, 3600);
-  EXPECT_FALSE(prepare_scan(c, 0.0, config, {}).cloud->has_times());
+  EXPECT_FALSE(prepare_scan(c, 0.0, config.preprocess, {}).cloud->has_times());
   config.preprocess.deskew_from_azimuth = true;
-  EXPECT_TRUE(prepare_scan(c, 0.0, config, {}).cloud->has_times());
+  EXPECT_TRUE(prepare_scan(c, 0.0, config.preprocess, {}).cloud->has_times());
 }
 
 // The map command's flags reach the configuration it runs with (config.yaml).
