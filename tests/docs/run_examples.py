@@ -204,7 +204,7 @@ def main():
                     counts["shown"] += 1
                     continue
                 if block.kind == "sh" and is_ci_setup_block(block):
-                    print(f"{block.where}: sh      skipped (setup rule: CI runs these commands itself)")
+                    print(f"{block.where}: {'sh':<7}skipped (setup rule: CI runs these commands itself)")
                     counts["skipped"] += 1
                     continue
                 print(f"{block.where}: {block.kind:<7}", end="", flush=True)
