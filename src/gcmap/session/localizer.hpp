@@ -31,8 +31,9 @@ struct LocalizedFrame {
 
 class Localizer {
  public:
-  // config: of this run (preprocessing, odometry, localize.*). The prior's voxel maps must be at
-  // config.global.voxel_resolution.
+  // Like the pipeline it composes mapping's modules, so it takes the run's config and reads:
+  // preprocess and odometry (its sweep odometry), loop (ScanContext places and verification),
+  // localize, and global.voxel_resolution and global.th_min (the prior's voxel maps must be at it).
   Localizer(std::shared_ptr<const PriorMap> prior, const MappingConfig& config,
             std::shared_ptr<LinearizationBackend> backend = nullptr, PipelineOptions options = {});
   // The first frame's pose in the map; without it the first frame is globally initialized.
