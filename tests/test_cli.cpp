@@ -5,7 +5,9 @@
 #include <regex>
 
 #include "gcmap/core/preprocess.hpp"
+#include "gcmap/io/file.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
+#include "gcmap/mapping/config.hpp"
 #include "gcmap/sim/synthetic.hpp"
 #include "test_util.hpp"
 
@@ -77,6 +79,41 @@ TEST(Cli, BadInputExitsTwoWithOneLine) {
   EXPECT_NE(d.err.find("--init"), std::string::npos) << d.err;
   const RunResult e = run_cli("no-such-command");
   EXPECT_EQ(e.code, 2);
+}
+
+TEST(Cli, ConfigRejectsValuesOutOfRangeNamingKeyAndFile) {
+  test::TempDir dir;
+  const std::vector<std::pair<std::string, std::string>> hostile = {
+      {"preprocess:\n  downsample: 1e-300\n", "preprocess.downsample must be in [0.01, 100] m, got 1e-300"},
+      {"loop:\n  rings: 2000000000\n", "loop.rings must be in [1, 200], got 2000000000"},
+      {"loop:\n  sectors: 2000000000\n", "loop.sectors must be in [2, 360], got 2000000000"},
+      {"preprocess:\n  num_neighbors: 2000000000\n", "preprocess.num_neighbors must be in [4, 100], got 2000000000"},
+  };
+  for (const auto& [yaml, message] : hostile) {
+    std::ofstream(dir / "hostile.yaml") << yaml;
+    const RunResult r = run_cli("config --config " + (dir / "hostile.yaml"));
+    EXPECT_EQ(r.code, 2) << yaml;
+    EXPECT_EQ(r.err, "gcmap: " + (dir / "hostile.yaml") + ": " + message + "\n");
+    EXPECT_EQ(r.out, "");
+  }
+  // The defaults, dumped, load and dump the same.
+  const RunResult defaults = run_cli("config");
+  ASSERT_EQ(defaults.code, 0) << defaults.err;
+  std::ofstream(dir / "defaults.yaml") << defaults.out;
+  const RunResult back = run_cli("config --config " + (dir / "defaults.yaml"));
+  EXPECT_EQ(back.code, 0) << back.err;
+  EXPECT_EQ(back.out, defaults.out);
+}
+
+TEST(Cli, ConfigDescribePrintsEveryKey) {
+  const RunResult text = run_cli("config --describe");
+  ASSERT_EQ(text.code, 0) << text.err;
+  EXPECT_EQ(text.out, config_reference_text());
+  EXPECT_NE(text.out.find("loop.tukey_width"), std::string::npos);
+  const RunResult markdown = run_cli("config --describe --markdown");
+  ASSERT_EQ(markdown.code, 0) << markdown.err;
+  EXPECT_EQ(markdown.out, read_file(std::string(GCMAP_SOURCE_DIR) + "/docs/config.md"));
+  EXPECT_EQ(run_cli("config --markdown").code, 2);  // only with --describe
 }
 
 TEST(Cli, HelpDocumentsDefaults) {

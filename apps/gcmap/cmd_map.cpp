@@ -186,13 +186,20 @@ void add_demo(CLI::App& app, Runner& run) {
 }
 
 void add_config(CLI::App& app, Runner& run) {
-  auto file = std::make_shared<std::string>();
-  auto* cmd = app.add_subcommand("config", "Print the effective mapping configuration as YAML");
-  cmd->add_option("--config", *file, "Load this YAML first (validates it)");
-  cmd->callback([file, &run] {
-    run = [file] {
-      const MappingConfig c = file->empty() ? MappingConfig{} : MappingConfig::load(*file);
-      std::cout << c.to_yaml();
+  struct Options {
+    std::string file;
+    bool describe = false, markdown = false;
+  };
+  auto opt = std::make_shared<Options>();
+  auto* cmd = app.add_subcommand("config", "Print the effective mapping configuration as YAML, or describe every key");
+  auto* file = cmd->add_option("--config", opt->file, "Load this YAML first (validates it: every key in its range)");
+  auto* describe =
+      cmd->add_flag("--describe", opt->describe, "Every key's type, default, unit, range, module and meaning")->excludes(file);
+  cmd->add_flag("--markdown", opt->markdown, "With --describe: as Markdown (docs/config.md)")->needs(describe);
+  cmd->callback([opt, &run] {
+    run = [opt] {
+      if (opt->describe) std::cout << (opt->markdown ? config_reference_markdown() : config_reference_text());
+      else std::cout << (opt->file.empty() ? MappingConfig{} : MappingConfig::load(opt->file)).to_yaml();
       return 0;
     };
   });

@@ -1,4 +1,5 @@
 import copy
+import re
 
 import pytest
 
@@ -47,7 +48,7 @@ def test_load(tmp_path):
 
 
 @pytest.mark.parametrize("key, value, message", [
-    ("preprocess.downsample", -1.0, "preprocess.downsample must be positive"),
+    ("preprocess.downsample", -1.0, re.escape("preprocess.downsample must be in [0.01, 100] m, got -1")),
     ("preprocess.downsample", "fine", "preprocess.downsample must be a number, got 'fine'"),
     ("local.max_keyframes", 2.5, "local.max_keyframes must be an integer, got 2.5"),
     ("loop.enabled", 1, "loop.enabled must be true or false, got 1"),
@@ -64,11 +65,30 @@ def test_bad_values_raise_value_error_naming_the_key(key, value, message):
     assert c.to_yaml() == before  # a rejected change leaves the config as it was
 
 
+@pytest.mark.parametrize("key, value, message", [
+    ("preprocess.downsample", 1e-300, "preprocess.downsample must be in [0.01, 100] m, got 1e-300"),
+    ("global.voxel_resolution", 1e-300, "global.voxel_resolution must be in [0.01, 100] m, got 1e-300"),
+    ("loop.rings", 2000000000, "loop.rings must be in [1, 200], got 2000000000"),
+    ("loop.sectors", 2000000000, "loop.sectors must be in [2, 360], got 2000000000"),
+    ("preprocess.num_neighbors", 2000000000, "preprocess.num_neighbors must be in [4, 100], got 2000000000"),
+])
+def test_values_out_of_range_name_the_key(key, value, message):
+    c = gcmap.MappingConfig()
+    section, field = key.split(".")
+    for change in (lambda: c.set(key, value), lambda: setattr(getattr(c, section), field, value),
+                   lambda: gcmap.MappingConfig({key: value})):
+        with pytest.raises(ValueError, match=re.escape(message)):
+            change()
+    assert c == gcmap.MappingConfig()
+    with pytest.raises(ValueError, match=re.escape("config: " + message)):
+        gcmap.MappingConfig.from_yaml(f"{section}:\n  {field}: {value}\n")
+
+
 def test_attribute_errors():
     c = gcmap.MappingConfig()
     with pytest.raises(AttributeError, match="preprocess.downsampel"):
         c.preprocess.downsampel = 1.0
-    with pytest.raises(ValueError, match="odometry.voxel_resolution must be positive"):
+    with pytest.raises(ValueError, match=re.escape("odometry.voxel_resolution must be in [0.01, 100] m, got 0")):
         c.odometry.voxel_resolution = 0.0
     assert c.odometry.voxel_resolution == 1.0
 

@@ -9,6 +9,7 @@ namespace gcmap {
 
 // Explicit loops (paper Section III-C): ScanContext candidates between keyframes, GICP
 // verification of the submap pair, an SE(3) constraint with a shifted Tukey kernel.
+// Each key's meaning, unit and valid range: the config table (mapping/config.cpp), docs/config.md.
 struct LoopConfig {
   bool enabled = true;
   ScanContextConfig scan_context;
@@ -17,9 +18,8 @@ struct LoopConfig {
   double max_descriptor_distance = 0.15;  // strict: a false loop costs more than a missed one
   double verification_downsample = 0.5;  // m, both submaps before GICP
   double inlier_distance = 0.3;          // m, after GICP
-  // Strict, and the plane distance decides: in our simulated street grid (2 cm range noise), wrong
-  // blocks rotated by 90 or 180 degrees aligned 0.60-0.74 of points at 3.3-6.6 cm, true revisits
-  // 0.72-0.95 at 2.0-2.7 cm. Scale max_inlier_rmse with the sensor's noise.
+  // Strict, and the plane distance decides: in a regular street grid wrong blocks align many points
+  // too, but farther from their planes than true revisits. Scale max_inlier_rmse with the sensor's noise.
   double min_inlier_fraction = 0.6;
   double max_inlier_rmse = 0.03;  // m, point-to-plane
   // Constant information of the constraint (sigmas), and the shifted Tukey kernel on its whitened

@@ -9,6 +9,7 @@
 
 namespace gcmap {
 
+// Each key's (loop.rings, ...) meaning, unit and valid range: the config table (mapping/config.cpp), docs/config.md.
 struct ScanContextConfig {
   int rings = 20;
   int sectors = 60;

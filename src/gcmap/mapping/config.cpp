@@ -4,6 +4,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <map>
 #include <optional>
@@ -34,98 +35,292 @@ constexpr std::pair<LinearSolver, const char*> kLinearSolvers[] = {
     {LinearSolver::eigen, "eigen"}, {LinearSolver::cholmod, "cholmod"}, {LinearSolver::automatic, "auto"}};
 
 template <typename E>
-E parse_config_enum(const std::string& text, const std::string& key) {
-  if constexpr (std::is_same_v<E, GlobalMode>) return parse_enum(text, key, kGlobalModes);
-  else if constexpr (std::is_same_v<E, FactorSource>) return parse_enum(text, key, kFactorSources);
-  else if constexpr (std::is_same_v<E, Relinearize>) return parse_enum(text, key, kRelinearize);
-  else return parse_enum(text, key, kLinearSolvers);
+const auto& enum_names() {
+  if constexpr (std::is_same_v<E, GlobalMode>) return kGlobalModes;
+  else if constexpr (std::is_same_v<E, FactorSource>) return kFactorSources;
+  else if constexpr (std::is_same_v<E, Relinearize>) return kRelinearize;
+  else return kLinearSolvers;
 }
 
-// Visits every (section, key, field) once, for loading and dumping alike.
+template <typename E>
+E parse_config_enum(const std::string& text, const std::string& key) {
+  return parse_enum(text, key, enum_names<E>());
+}
+
+// A key's documentation and valid range, beside its name in the table below. The range is
+// inclusive and checked for numbers only; it allows what a real sensor or drive can need and no
+// more, so that a typo (a unit off by 1e3, a sign) is an error naming the key, not a meaningless map.
+struct KeyDoc {
+  const char* unit;     // "-": none
+  double min, max;      // numbers only
+  const char* module;   // the folder of the code that reads it
+  const char* meaning;  // one sentence or two, no '|' (it is a Markdown table cell)
+};
+
+// The one config table, keys in YAML order, split into a few functions by section to keep each short.
+template <typename Config, typename Visitor>
+void visit_preprocess(Config& c, Visitor& v) {
+  v("preprocess", "min_range", c.preprocess.min_range,
+    KeyDoc{"m", 0, 100, "odometry/", "Returns closer to the sensor than this are dropped: the ego vehicle and its mounts."});
+  v("preprocess", "max_range", c.preprocess.max_range,
+    KeyDoc{"m", 1, 1000, "odometry/",
+           "Returns farther than this are dropped: far points are sparse and their angular noise grows with range. Must exceed "
+           "min_range."});
+  v("preprocess", "downsample", c.preprocess.downsample,
+    KeyDoc{"m", 0.01, 100, "odometry/", "Voxel size of the downsampling of each scan before registration."});
+  v("preprocess", "num_neighbors", c.preprocess.num_neighbors,
+    KeyDoc{"-", 4, 100, "odometry/",
+           "Nearest neighbours from which each point's covariance (its local surface shape) is estimated."});
+  v("preprocess", "elevation_sigma_deg", c.preprocess.elevation_sigma_deg,
+    KeyDoc{"deg", 0, 5, "odometry/",
+           "Beam elevation uncertainty added to each point's covariance (range times this, in the beam's vertical plane), for a "
+           "sensor whose beams have an elevation bias that puts far ground off its plane. 0: off."});
+  v("preprocess", "elevation_calibration", c.preprocess.elevation_calibration,
+    KeyDoc{"-", 0, 0, "mapping/",
+           "A file of per-beam elevation offsets (written by `gcmap calibrate`) applied to every raw scan; empty: none."});
+  v("preprocess", "kitti_vertical_correction", c.preprocess.kitti_vertical_correction,
+    KeyDoc{"-", 0, 0, "mapping/",
+           "The 0.22 deg intrinsic vertical correction of KITTI's HDL-64 scans; applied to KITTI layouts only."});
+  v("preprocess", "remove_dynamic_labels", c.preprocess.remove_dynamic_labels,
+    KeyDoc{"-", 0, 0, "mapping/",
+           "Points of SemanticKITTI's moving classes are dropped, when the sequence has a labels/ folder."});
+  v("preprocess", "deskew", c.preprocess.deskew,
+    KeyDoc{"-", 0, 0, "odometry/",
+           "Motion compensation of scans with per-point times, by the motion the odometry registers over the sweep (a velocity "
+           "that changes linearly)."});
+  v("preprocess", "redeskew", c.preprocess.redeskew,
+    KeyDoc{"-", 0, 0, "odometry/",
+           "Each sweep is deskewed again once the next one is registered, by the motion interpolated between the poses on both "
+           "sides of it instead of extrapolated, for the map and the odometry's model."});
+  v("preprocess", "deskew_from_azimuth", c.preprocess.deskew_from_azimuth,
+    KeyDoc{"-", 0, 0, "mapping/",
+           "Scans without per-point times from a spinning sensor get times from each point's azimuth: sweep_period times the "
+           "fraction of the turn since sweep_start_deg."});
+  v("preprocess", "sweep_period", c.preprocess.sweep_period,
+    KeyDoc{"s", 0.01, 1, "mapping/", "Duration of one turn of the sensor, for deskew_from_azimuth."});
+  v("preprocess", "sweep_start_deg", c.preprocess.sweep_start_deg,
+    KeyDoc{"deg", -360, 360, "mapping/",
+           "Azimuth at which a sweep starts, for deskew_from_azimuth; 0 is forward (+x), as in KITTI's HDL-64 files."});
+  v("preprocess", "sweep_clockwise", c.preprocess.sweep_clockwise,
+    KeyDoc{
+        "-", 0, 0, "mapping/",
+        "The sensor turns clockwise seen from above, for deskew_from_azimuth; false (counter-clockwise) as in KITTI's files."});
+}
+
+template <typename Config, typename Visitor>
+void visit_odometry_local(Config& c, Visitor& v) {
+  v("odometry", "voxel_resolution", c.odometry.voxel_resolution,
+    KeyDoc{"m", 0.01, 100, "odometry/", "Voxel size of the scan-to-model VGICP registration of the odometry."});
+  v("odometry", "model_keyframes", c.odometry.model_keyframes,
+    KeyDoc{"-", 1, 100, "odometry/", "Recent keyframes whose points form the local model each scan is registered to."});
+  v("odometry", "keyframe_distance", c.odometry.keyframe_distance,
+    KeyDoc{"m", 0, 100, "odometry/", "A frame becomes a keyframe of the model once it moved this far from the last keyframe."});
+  v("odometry", "keyframe_angle_deg", c.odometry.keyframe_angle_deg,
+    KeyDoc{"deg", 0, 180, "odometry/",
+           "A frame becomes a keyframe of the model once it turned this much from the last keyframe."});
+  v("odometry", "max_iterations", c.odometry.max_iterations,
+    KeyDoc{"-", 1, 1000, "odometry/", "Gauss-Newton iterations of one scan-to-model registration, at most."});
+  v("odometry", "max_interval_ratio", c.odometry.max_interval_ratio,
+    KeyDoc{"-", 1, 1000, "odometry/",
+           "The constant-velocity prediction scales the last motion by (this interval / the last one), at most by this factor, "
+           "so that one odd stamp cannot throw the guess far."});
+  v("odometry", "max_gap", c.odometry.max_gap,
+    KeyDoc{"s", 0.01, 60, "odometry/",
+           "After a gap between stamps longer than this, no motion is predicted: the guess is standing still."});
+  v("odometry", "retry_distance", c.odometry.retry_distance,
+    KeyDoc{"m", 0.01, 100, "odometry/",
+           "A registration that matches too few points (retry_inlier_fraction) and lands farther than this from the prediction "
+           "is retried from zero motion on coarser voxels; if it still does, the frame is placed by the prediction."});
+  v("odometry", "retry_inlier_fraction", c.odometry.retry_inlier_fraction,
+    KeyDoc{"-", 0, 1, "odometry/",
+           "Fraction of a scan's points a registration must match to be trusted without a retry; good matches on clean data "
+           "match far more than the default."});
+  v("odometry", "start_voxel_resolution", c.odometry.start_voxel_resolution,
+    KeyDoc{"m", 0.01, 100, "odometry/",
+           "Before any motion is known (second frame, after a gap) the search starts from standing still on voxels this large, "
+           "where the ground rings of one sensor pose blur into a plane instead of confirming the wrong guess. At least "
+           "voxel_resolution."});
+  v("local", "th_max", c.local.th_max,
+    KeyDoc{"-", 0.01, 1, "mapping/",
+           "A frame whose overlap with the last keyframe exceeds this is skipped (placed from that keyframe)."});
+  v("local", "th_min", c.local.th_min,
+    KeyDoc{"-", 0, 1, "mapping/",
+           "A submap closes when the overlap of its first and last keyframes falls below this; below th_max."});
+  v("local", "max_keyframes", c.local.max_keyframes,
+    KeyDoc{"-", 2, 200, "mapping/", "Keyframes in a submap at most (N_max in the paper)."});
+  v("local", "voxel_resolution", c.local.voxel_resolution,
+    KeyDoc{"m", 0.01, 100, "mapping/", "Voxel size of the keyframe voxel maps of the in-submap matching-cost factors."});
+  v("local", "submap_downsample", c.local.submap_downsample,
+    KeyDoc{"m", 0.01, 100, "mapping/", "Voxel size of the downsampling of a submap's merged keyframes."});
+  v("local", "max_submap_points", c.local.max_submap_points,
+    KeyDoc{"-", 1000, 10000000, "mapping/",
+           "Points of a submap cloud at most (an even subsample beyond it), which bounds memory per submap."});
+  v("local", "factor_source_points", c.local.factor_source_points,
+    KeyDoc{"-", 0, 10000000, "mapping/",
+           "Keyframe points used as the source of the in-submap factors (an even subsample); 0: all, else at least 1000."});
+  v("local", "max_iterations", c.local.max_iterations,
+    KeyDoc{"-", 1, 1000, "mapping/", "Levenberg-Marquardt iterations of a submap's keyframe optimization, at most."});
+  v("local", "relative_error_tol", c.local.relative_error_tol,
+    KeyDoc{"-", 0, 1, "mapping/", "The submap's optimization stops once a step lowers the error by less than this fraction."});
+}
+
+template <typename Config, typename Visitor>
+void visit_global(Config& c, Visitor& v) {
+  v("global", "th_min", c.global.th_min,
+    KeyDoc{"-", 0, 1, "mapping/", "Overlap two submaps need for a matching-cost factor between them (th_min_G in the paper)."});
+  v("global", "voxel_resolution", c.global.voxel_resolution,
+    KeyDoc{
+        "m", 0.01, 100, "mapping/",
+        "Voxel size of the submap voxel maps of the global matching-cost factors (r_G); coarse voxels tilt maps of noisy data."});
+  v("global", "mode", c.global.mode,
+    KeyDoc{"-", 0, 0, "mapping/",
+           "full: a factor to every overlapping past submap (the paper); sliding-window: only to the last `window` submaps."});
+  v("global", "window", c.global.window,
+    KeyDoc{"-", 1, 1000, "mapping/", "Predecessors each submap is connected to in the sliding-window mode."});
+  v("global", "factor", c.global.factor,
+    KeyDoc{"-", 0, 0, "mapping/",
+           "vgicp: matching-cost factors (the paper); se3: relative poses from scan matching (its ablation)."});
+  v("global", "max_iterations", c.global.max_iterations,
+    KeyDoc{"-", 1, 1000, "mapping/", "Levenberg-Marquardt iterations per submap insertion (warm-started), at most."});
+  v("global", "relative_error_tol", c.global.relative_error_tol,
+    KeyDoc{"-", 0, 1, "mapping/",
+           "An insertion's optimization stops once a step lowers the error by less than this fraction; the final one runs to "
+           "1e-6."});
+  v("global", "final_iterations", c.global.final_iterations,
+    KeyDoc{"-", 1, 1000, "mapping/", "Levenberg-Marquardt iterations of the final optimization after the last submap, at most."});
+  v("global", "relinearize", c.global.relinearize,
+    KeyDoc{"-", 0, 0, "mapping/",
+           "always: every factor at every iteration (the paper); moved: only factors whose poses moved more than "
+           "relinearize_threshold since their last linearization (much faster on long drives)."});
+  v("global", "relinearize_threshold", c.global.relinearize_threshold,
+    KeyDoc{"-", 0, 10, "mapping/",
+           "Norm of a factor's relative-pose change (rad and m together) since its linearization above which it is linearized "
+           "anew. Lower stays closer to the result of always, at more cost; GLIM's iSAM2 uses 0.1."});
+  v("global", "max_relinearizations", c.global.max_relinearizations,
+    KeyDoc{"-", 0, 10000000, "mapping/",
+           "Moved factors linearized anew per iteration of an insertion at most (those that moved most), which bounds the cost "
+           "of an insertion where a revisit moves much of the graph; 0: no limit. The final optimization has none."});
+  v("global", "linear_solver", c.global.linear_solver,
+    KeyDoc{"-", 0, 0, "graph/",
+           "Sparse solver of each Levenberg-Marquardt step: eigen, cholmod (when built with SuiteSparse) or auto."});
+  v("global", "factor_source_points", c.global.factor_source_points,
+    KeyDoc{"-", 1000, 10000000, "mapping/",
+           "Points of a submap used as the source of its matching-cost factors and overlaps (an even subsample; the target voxel "
+           "maps keep every point). The global graph's cost is linear in it."});
+}
+
+template <typename Config, typename Visitor>
+void visit_loop(Config& c, Visitor& v) {
+  v("loop", "enabled", c.loop.enabled,
+    KeyDoc{"-", 0, 0, "mapping/", "Explicit loop closures: ScanContext candidates, GICP verification, an SE(3) constraint."});
+  v("loop", "rings", c.loop.scan_context.rings,
+    KeyDoc{"-", 1, 200, "loop/", "Radial bins of the ScanContext descriptor of a keyframe."});
+  v("loop", "sectors", c.loop.scan_context.sectors,
+    KeyDoc{"-", 2, 360, "loop/",
+           "Azimuth bins of the ScanContext descriptor; they also set the resolution of the yaw it gives."});
+  v("loop", "max_radius", c.loop.scan_context.max_radius,
+    KeyDoc{"m", 1, 1000, "loop/", "Points farther from the sensor than this are left out of the descriptor."});
+  v("loop", "lidar_height", c.loop.scan_context.lidar_height,
+    KeyDoc{"m", -10, 50, "loop/",
+           "Height of the sensor above the ground, added to each point's z so that ground returns count as occupied cells."});
+  v("loop", "exclude_recent", c.loop.exclude_recent,
+    KeyDoc{"-", 1, 1000, "mapping/",
+           "Submaps just before the current one that are not searched for loops: the matching-cost factors already join them."});
+  v("loop", "num_candidates", c.loop.num_candidates,
+    KeyDoc{"-", 1, 100, "loop/", "Nearest places by ring key whose descriptors are matched in full, per query."});
+  v("loop", "max_descriptor_distance", c.loop.max_descriptor_distance,
+    KeyDoc{"-", 0.001, 1, "mapping/",
+           "Descriptor (cosine) distance a loop candidate may have at most; strict because a false loop costs more than a "
+           "missed one."});
+  v("loop", "verification_downsample", c.loop.verification_downsample,
+    KeyDoc{"m", 0.01, 100, "loop/", "Voxel size both submaps are downsampled to before the GICP verification of a candidate."});
+  v("loop", "inlier_distance", c.loop.inlier_distance,
+    KeyDoc{"m", 0.01, 100, "loop/",
+           "A point is an inlier of the verification when a point of the other submap lies this close after GICP."});
+  v("loop", "min_inlier_fraction", c.loop.min_inlier_fraction,
+    KeyDoc{"-", 0.01, 1, "loop/",
+           "Fraction of the source submap's points that must be inliers for a loop to be accepted; wrong places in a regular "
+           "street grid align many points too, so max_inlier_rmse decides."});
+  v("loop", "max_inlier_rmse", c.loop.max_inlier_rmse,
+    KeyDoc{"m", 0.001, 10, "loop/",
+           "Point-to-plane RMSE of the inliers a loop may have at most: true revisits align at about the range noise, wrong "
+           "places clearly above it. Scale it with the sensor's noise."});
+  v("loop", "rotation_sigma_deg", c.loop.rotation_sigma_deg,
+    KeyDoc{"deg", 0.0001, 180, "loop/", "Rotation sigma of the loop constraint's constant information."});
+  v("loop", "translation_sigma", c.loop.translation_sigma,
+    KeyDoc{"m", 0.0001, 100, "loop/", "Translation sigma of the loop constraint's constant information."});
+  v("loop", "tukey_width", c.loop.tukey_width,
+    KeyDoc{"-", 1e-6, 1e12, "loop/",
+           "Width w of the shifted Tukey kernel on the constraint's whitened residual r: zero weight where r is sqrt(w) "
+           "or more from tukey_offset. With the defaults the pull fades below r = 5 (the matching-cost factors decide) and above "
+           "r = 1995 "
+           "(grossly wrong loops)."});
+  v("loop", "tukey_offset", c.loop.tukey_offset,
+    KeyDoc{"-", 0, 1e6, "loop/",
+           "Offset of the shifted Tukey kernel: the whitened residual at which the loop pulls most (with the default sigmas, "
+           "10 m of translation)."});
+}
+
+template <typename Config, typename Visitor>
+void visit_localize_merge_output(Config& c, Visitor& v) {
+  v("localize", "min_overlap", c.localize.min_overlap,
+    KeyDoc{"-", 0.01, 1, "session/",
+           "A frame tracks while at least this fraction of its points fall in voxels of the prior map (at "
+           "global.voxel_resolution); below it the frame is lost and global initialization runs."});
+  v("localize", "submap_radius", c.localize.submap_radius,
+    KeyDoc{"m", 1, 10000, "session/", "Prior submaps whose origin is this close to the frame are candidates for matching."});
+  v("localize", "max_submaps", c.localize.max_submaps,
+    KeyDoc{"-", 1, 100, "session/",
+           "Of those, the ones overlapping the frame most are matched, at most this many: the cost grows with each, the "
+           "accuracy hardly."});
+  v("localize", "min_inlier_fraction", c.localize.min_inlier_fraction,
+    KeyDoc{"-", 0.01, 1, "session/",
+           "Global initialization accepts a ScanContext candidate when GICP aligns at least this fraction of the scan within "
+           "loop.inlier_distance; lower than for loops, since a scan sees beyond one submap."});
+  v("localize", "max_inlier_rmse", c.localize.max_inlier_rmse,
+    KeyDoc{"m", 0.001, 10, "session/",
+           "Global initialization also needs the point-to-plane RMSE of those inliers to be at most this: one noisy scan "
+           "against a submap, looser than loop.max_inlier_rmse for two submaps (a strict bound finds the place much later)."});
+  v("localize", "relocalize_every", c.localize.relocalize_every,
+    KeyDoc{"-", 1, 10000, "session/", "Frames between global initialization attempts while lost."});
+  v("merge", "max_descriptor_distance", c.merge.max_descriptor_distance,
+    KeyDoc{"-", 0.001, 1, "session/",
+           "Descriptor distance of a place between sessions at most; looser than loop.max_descriptor_distance since another "
+           "session passes a place in another lane or direction (the GICP verification rejects wrong ones)."});
+  v("merge", "max_verifications", c.merge.max_verifications,
+    KeyDoc{"-", 1, 10000, "session/",
+           "GICP verifications (distinct submap pairs, best ScanContext candidates first) per session to place, at most."});
+  v("merge", "min_inlier_fraction", c.merge.min_inlier_fraction,
+    KeyDoc{"-", 0.01, 1, "session/",
+           "A place between sessions is accepted when GICP aligns at least this fraction of the source submap within "
+           "loop.inlier_distance, at an RMSE that max_rmse_ratio allows."});
+  v("merge", "max_rmse_ratio", c.merge.max_rmse_ratio,
+    KeyDoc{"-", 0.01, 100, "session/",
+           "A place between sessions may have a point-to-plane RMSE of at most loop.max_inlier_rmse, or of at most this times "
+           "the RMSE at which each of "
+           "the two submaps meets its neighbour in its own session: no absolute bound suits both clean and noisy sessions."});
+  v("merge", "max_iterations", c.merge.max_iterations,
+    KeyDoc{"-", 1, 1000, "session/", "Levenberg-Marquardt iterations of the joint optimization of all sessions, at most."});
+  v("output", "map_resolution", c.output.map_resolution,
+    KeyDoc{"m", 0.01, 100, "apps/gcmap/", "Voxel size of the written map (map.ply, map.pcd)."});
+  v("output", "pcd", c.output.pcd, KeyDoc{"-", 0, 0, "apps/gcmap/", "Also write the map as map.pcd, beside map.ply."});
+}
+
+// Visits every (section, key, field, doc) once, for loading, dumping, checking and documenting.
 template <typename Config, typename Visitor>
 void visit(Config& c, Visitor&& v) {
-  v("preprocess", "min_range", c.preprocess.min_range);
-  v("preprocess", "max_range", c.preprocess.max_range);
-  v("preprocess", "downsample", c.preprocess.downsample);
-  v("preprocess", "num_neighbors", c.preprocess.num_neighbors);
-  v("preprocess", "elevation_sigma_deg", c.preprocess.elevation_sigma_deg);
-  v("preprocess", "elevation_calibration", c.preprocess.elevation_calibration);
-  v("preprocess", "kitti_vertical_correction", c.preprocess.kitti_vertical_correction);
-  v("preprocess", "remove_dynamic_labels", c.preprocess.remove_dynamic_labels);
-  v("preprocess", "deskew", c.preprocess.deskew);
-  v("preprocess", "redeskew", c.preprocess.redeskew);
-  v("preprocess", "deskew_from_azimuth", c.preprocess.deskew_from_azimuth);
-  v("preprocess", "sweep_period", c.preprocess.sweep_period);
-  v("preprocess", "sweep_start_deg", c.preprocess.sweep_start_deg);
-  v("preprocess", "sweep_clockwise", c.preprocess.sweep_clockwise);
-  v("odometry", "voxel_resolution", c.odometry.voxel_resolution);
-  v("odometry", "model_keyframes", c.odometry.model_keyframes);
-  v("odometry", "keyframe_distance", c.odometry.keyframe_distance);
-  v("odometry", "keyframe_angle_deg", c.odometry.keyframe_angle_deg);
-  v("odometry", "max_iterations", c.odometry.max_iterations);
-  v("odometry", "max_interval_ratio", c.odometry.max_interval_ratio);
-  v("odometry", "max_gap", c.odometry.max_gap);
-  v("odometry", "retry_distance", c.odometry.retry_distance);
-  v("odometry", "retry_inlier_fraction", c.odometry.retry_inlier_fraction);
-  v("odometry", "start_voxel_resolution", c.odometry.start_voxel_resolution);
-  v("local", "th_max", c.local.th_max);
-  v("local", "th_min", c.local.th_min);
-  v("local", "max_keyframes", c.local.max_keyframes);
-  v("local", "voxel_resolution", c.local.voxel_resolution);
-  v("local", "submap_downsample", c.local.submap_downsample);
-  v("local", "max_submap_points", c.local.max_submap_points);
-  v("local", "factor_source_points", c.local.factor_source_points);
-  v("local", "max_iterations", c.local.max_iterations);
-  v("local", "relative_error_tol", c.local.relative_error_tol);
-  v("global", "th_min", c.global.th_min);
-  v("global", "voxel_resolution", c.global.voxel_resolution);
-  v("global", "mode", c.global.mode);
-  v("global", "window", c.global.window);
-  v("global", "factor", c.global.factor);
-  v("global", "max_iterations", c.global.max_iterations);
-  v("global", "relative_error_tol", c.global.relative_error_tol);
-  v("global", "final_iterations", c.global.final_iterations);
-  v("global", "relinearize", c.global.relinearize);
-  v("global", "relinearize_threshold", c.global.relinearize_threshold);
-  v("global", "max_relinearizations", c.global.max_relinearizations);
-  v("global", "linear_solver", c.global.linear_solver);
-  v("global", "factor_source_points", c.global.factor_source_points);
-  v("loop", "enabled", c.loop.enabled);
-  v("loop", "rings", c.loop.scan_context.rings);
-  v("loop", "sectors", c.loop.scan_context.sectors);
-  v("loop", "max_radius", c.loop.scan_context.max_radius);
-  v("loop", "lidar_height", c.loop.scan_context.lidar_height);
-  v("loop", "exclude_recent", c.loop.exclude_recent);
-  v("loop", "num_candidates", c.loop.num_candidates);
-  v("loop", "max_descriptor_distance", c.loop.max_descriptor_distance);
-  v("loop", "verification_downsample", c.loop.verification_downsample);
-  v("loop", "inlier_distance", c.loop.inlier_distance);
-  v("loop", "min_inlier_fraction", c.loop.min_inlier_fraction);
-  v("loop", "max_inlier_rmse", c.loop.max_inlier_rmse);
-  v("loop", "rotation_sigma_deg", c.loop.rotation_sigma_deg);
-  v("loop", "translation_sigma", c.loop.translation_sigma);
-  v("loop", "tukey_width", c.loop.tukey_width);
-  v("loop", "tukey_offset", c.loop.tukey_offset);
-  v("localize", "min_overlap", c.localize.min_overlap);
-  v("localize", "submap_radius", c.localize.submap_radius);
-  v("localize", "max_submaps", c.localize.max_submaps);
-  v("localize", "min_inlier_fraction", c.localize.min_inlier_fraction);
-  v("localize", "max_inlier_rmse", c.localize.max_inlier_rmse);
-  v("localize", "relocalize_every", c.localize.relocalize_every);
-  v("merge", "max_descriptor_distance", c.merge.max_descriptor_distance);
-  v("merge", "max_verifications", c.merge.max_verifications);
-  v("merge", "min_inlier_fraction", c.merge.min_inlier_fraction);
-  v("merge", "max_rmse_ratio", c.merge.max_rmse_ratio);
-  v("merge", "max_iterations", c.merge.max_iterations);
-  v("output", "map_resolution", c.output.map_resolution);
-  v("output", "pcd", c.output.pcd);
+  visit_preprocess(c, v);
+  visit_odometry_local(c, v);
+  visit_global(c, v);
+  visit_loop(c, v);
+  visit_localize_merge_output(c, v);
 }
 
 // Every section and key must be a known plain name.
 void check_known_keys(const YAML::Node& root, const std::string& path) {
   std::map<std::string, std::map<std::string, bool>> known;
   MappingConfig defaults;
-  visit(defaults, [&](const char* s, const char* k, auto&) { known[s][k] = true; });
+  visit(defaults, [&](const char* s, const char* k, auto&, const KeyDoc&) { known[s][k] = true; });
   for (const auto& section : root) {
     if (!section.first.IsScalar()) throw Error(path + ": a section name must be a plain word");
     const std::string s = section.first.Scalar();
@@ -163,15 +358,13 @@ MappingConfig MappingConfig::parse(const std::string& text, const std::string& p
   YAML::Node root;
   try {
     root = YAML::Load(text);
-  } catch (const YAML::Exception& e) {
-    throw Error(path + ": YAML syntax error at line " + std::to_string(e.mark.line + 1));
-  }
+  } catch (const YAML::Exception& e) { throw Error(path + ": YAML syntax error at line " + std::to_string(e.mark.line + 1)); }
   MappingConfig c;
   if (root.IsNull()) return c;
   if (!root.IsMap()) throw Error(path + ": expected a mapping of sections");
   check_known_keys(root, path);
   const YAML::Node& croot = root;
-  visit(c, [&](const char* s, const char* k, auto& field) {
+  visit(c, [&](const char* s, const char* k, auto& field, const KeyDoc&) {
     const YAML::Node section = croot[s];
     if (!section.IsDefined() || !section.IsMap()) return;
     const YAML::Node node = section[k];
@@ -181,9 +374,7 @@ MappingConfig MappingConfig::parse(const std::string& text, const std::string& p
     try {
       if constexpr (std::is_enum_v<T>) field = parse_config_enum<T>(node.as<std::string>(), key);
       else field = node.as<T>();
-    } catch (const Error& e) {
-      throw Error(path + ": " + e.what());
-    } catch (const YAML::Exception&) {
+    } catch (const Error& e) { throw Error(path + ": " + e.what()); } catch (const YAML::Exception&) {
       throw Error(path + ": key '" + key + "' has an unreadable value");
     }
     if constexpr (std::is_floating_point_v<T>)
@@ -191,9 +382,7 @@ MappingConfig MappingConfig::parse(const std::string& text, const std::string& p
   });
   try {
     c.validate();
-  } catch (const Error& e) {
-    throw Error(path + ": " + e.what());
-  }
+  } catch (const Error& e) { throw Error(path + ": " + e.what()); }
   return c;
 }
 
@@ -221,84 +410,55 @@ std::string double_quoted(const std::string& text) {
   return out + "\"";
 }
 
+// A field as its YAML text (also its default in the documentation).
+template <typename T>
+std::string yaml_value(const T& field) {
+  if constexpr (std::is_same_v<T, bool>) return field ? "true" : "false";
+  else if constexpr (std::is_enum_v<T>) return to_string(field);
+  else if constexpr (std::is_floating_point_v<T>) return format_double(field);
+  else if constexpr (std::is_same_v<T, std::string>) return double_quoted(field);
+  else return std::to_string(field);
+}
+
+// Numbers outside the key's range; NaN is outside every range.
+template <typename T>
+void check_range(const char* s, const char* k, const T& field, const KeyDoc& doc) {
+  if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
+    if (field >= doc.min && field <= doc.max) return;
+    throw Error(std::string(s) + "." + k + " must be in [" + yaml_value(static_cast<T>(doc.min)) + ", " +
+                yaml_value(static_cast<T>(doc.max)) + "]" + (doc.unit == std::string("-") ? "" : std::string(" ") + doc.unit) +
+                ", got " + yaml_value(field));
+  }
+}
+
 }  // namespace
 
 std::string MappingConfig::to_yaml() const {
   std::ostringstream out;
   std::string current;
-  MappingConfig copy = *this;
-  visit(copy, [&](const char* s, const char* k, auto& field) {
+  visit(*this, [&](const char* s, const char* k, const auto& field, const KeyDoc&) {
     if (current != s) {
       out << s << ":\n";
       current = s;
     }
-    out << "  " << k << ": ";
-    using T = std::decay_t<decltype(field)>;
-    if constexpr (std::is_same_v<T, bool>) out << (field ? "true" : "false");
-    else if constexpr (std::is_enum_v<T>) out << to_string(field);
-    else if constexpr (std::is_floating_point_v<T>) out << format_double(field);
-    else if constexpr (std::is_same_v<T, std::string>) out << double_quoted(field);
-    else out << field;
-    out << "\n";
+    out << "  " << k << ": " << yaml_value(field) << "\n";
   });
   return out.str();
 }
 
+// Each key's range comes from the table; what is left here relates keys to each other or to the build.
 void MappingConfig::validate() const {
+  visit(*this, [](const char* s, const char* k, const auto& field, const KeyDoc& doc) { check_range(s, k, field, doc); });
   auto need = [](bool ok, const std::string& what) {
     if (!ok) throw Error(what);
   };
-  need(preprocess.min_range >= 0 && preprocess.max_range > preprocess.min_range, "preprocess.max_range must exceed preprocess.min_range >= 0");
-  need(preprocess.downsample > 0, "preprocess.downsample must be positive");
-  need(preprocess.num_neighbors >= 4, "preprocess.num_neighbors must be >= 4");
-  need(preprocess.elevation_sigma_deg >= 0 && preprocess.elevation_sigma_deg < 10,
-       "preprocess.elevation_sigma_deg must be in [0, 10)");
-  need(odometry.voxel_resolution > 0, "odometry.voxel_resolution must be positive");
+  need(preprocess.max_range > preprocess.min_range, "preprocess.max_range must exceed preprocess.min_range");
   need(odometry.start_voxel_resolution >= odometry.voxel_resolution,
        "odometry.start_voxel_resolution must be at least odometry.voxel_resolution");
-  need(odometry.model_keyframes >= 1, "odometry.model_keyframes must be >= 1");
-  need(odometry.max_iterations >= 1, "odometry.max_iterations must be >= 1");
-  need(preprocess.sweep_period > 0 && std::isfinite(preprocess.sweep_start_deg),
-       "preprocess.sweep_period must be positive, preprocess.sweep_start_deg finite");
-  need(odometry.max_interval_ratio >= 1 && odometry.max_gap > 0, "odometry.max_interval_ratio must be >= 1, odometry.max_gap positive");
-  need(odometry.retry_distance > 0 && odometry.retry_inlier_fraction >= 0 && odometry.retry_inlier_fraction <= 1,
-       "odometry.retry_distance must be positive, odometry.retry_inlier_fraction in [0, 1]");
-  need(local.th_max > 0 && local.th_max <= 1, "local.th_max must be in (0, 1]");
-  need(local.th_min >= 0 && local.th_min < local.th_max, "local.th_min must be in [0, local.th_max)");
-  need(local.max_keyframes >= 2, "local.max_keyframes must be >= 2");
-  need(local.voxel_resolution > 0 && local.submap_downsample > 0, "local resolutions must be positive");
-  need(local.max_submap_points >= 1000, "local.max_submap_points must be >= 1000");
-  need(global.factor_source_points >= 1000, "global.factor_source_points must be >= 1000");
+  need(local.th_min < local.th_max, "local.th_min must be below local.th_max");
   need(local.factor_source_points == 0 || local.factor_source_points >= 1000, "local.factor_source_points must be 0 or >= 1000");
-  need(global.th_min >= 0 && global.th_min <= 1, "global.th_min must be in [0, 1]");
-  need(global.voxel_resolution > 0, "global.voxel_resolution must be positive");
-  need(global.window >= 1, "global.window must be >= 1");
-  need(global.relinearize_threshold >= 0, "global.relinearize_threshold must be >= 0");
-  need(global.max_relinearizations >= 0, "global.max_relinearizations must be >= 0 (0: no limit)");
   need(global.linear_solver != LinearSolver::cholmod || cholmod_available(),
        "global.linear_solver is cholmod, but this build has no CHOLMOD (SuiteSparse)");
-  need(global.max_iterations >= 1 && global.final_iterations >= 1, "global iteration limits must be >= 1");
-  need(local.relative_error_tol >= 0 && global.relative_error_tol >= 0, "relative_error_tol must be >= 0");
-  need(loop.scan_context.rings >= 1 && loop.scan_context.sectors >= 2 && loop.scan_context.max_radius > 0,
-       "loop.rings, loop.sectors and loop.max_radius must be positive");
-  need(loop.exclude_recent >= 1 && loop.num_candidates >= 1, "loop.exclude_recent and loop.num_candidates must be >= 1");
-  need(loop.max_descriptor_distance > 0 && loop.max_descriptor_distance <= 1, "loop.max_descriptor_distance must be in (0, 1]");
-  need(loop.verification_downsample > 0 && loop.inlier_distance > 0 && loop.max_inlier_rmse > 0,
-       "loop.verification_downsample, loop.inlier_distance and loop.max_inlier_rmse must be positive");
-  need(loop.min_inlier_fraction > 0 && loop.min_inlier_fraction <= 1, "loop.min_inlier_fraction must be in (0, 1]");
-  need(loop.rotation_sigma_deg > 0 && loop.translation_sigma > 0, "loop sigmas must be positive");
-  need(loop.tukey_width > 0 && loop.tukey_offset >= 0, "loop.tukey_width must be positive, loop.tukey_offset >= 0");
-  need(localize.min_overlap > 0 && localize.min_overlap <= 1, "localize.min_overlap must be in (0, 1]");
-  need(localize.submap_radius > 0, "localize.submap_radius must be positive");
-  need(localize.max_submaps >= 1, "localize.max_submaps must be >= 1");
-  need(localize.min_inlier_fraction > 0 && localize.min_inlier_fraction <= 1, "localize.min_inlier_fraction must be in (0, 1]");
-  need(localize.max_inlier_rmse > 0, "localize.max_inlier_rmse must be positive");
-  need(localize.relocalize_every >= 1, "localize.relocalize_every must be >= 1");
-  need(merge.max_descriptor_distance > 0 && merge.max_descriptor_distance <= 1, "merge.max_descriptor_distance must be in (0, 1]");
-  need(merge.max_verifications >= 1 && merge.max_iterations >= 1, "merge.max_verifications and merge.max_iterations must be >= 1");
-  need(merge.min_inlier_fraction > 0 && merge.min_inlier_fraction <= 1, "merge.min_inlier_fraction must be in (0, 1]");
-  need(merge.max_rmse_ratio > 0, "merge.max_rmse_ratio must be positive");
-  need(output.map_resolution > 0, "output.map_resolution must be positive");
 }
 
 namespace {
@@ -344,13 +504,13 @@ T convert(const MappingConfig::Value& value, const std::string& key) {
 std::vector<std::string> MappingConfig::keys() {
   std::vector<std::string> out;
   const MappingConfig defaults;
-  visit(defaults, [&](const char* s, const char* k, const auto&) { out.push_back(std::string(s) + "." + k); });
+  visit(defaults, [&](const char* s, const char* k, const auto&, const KeyDoc&) { out.push_back(std::string(s) + "." + k); });
   return out;
 }
 
 MappingConfig::Value MappingConfig::get(const std::string& key) const {
   std::optional<Value> out;
-  visit(*this, [&](const char* s, const char* k, const auto& field) {
+  visit(*this, [&](const char* s, const char* k, const auto& field, const KeyDoc&) {
     if (out || key != std::string(s) + "." + k) return;
     if constexpr (std::is_enum_v<std::decay_t<decltype(field)>>) out = std::string(to_string(field));
     else out = Value(field);
@@ -361,12 +521,97 @@ MappingConfig::Value MappingConfig::get(const std::string& key) const {
 
 void MappingConfig::set(const std::string& key, const Value& value) {
   bool found = false;
-  visit(*this, [&](const char* s, const char* k, auto& field) {
+  visit(*this, [&](const char* s, const char* k, auto& field, const KeyDoc&) {
     if (found || key != std::string(s) + "." + k) return;
     found = true;
     field = convert<std::decay_t<decltype(field)>>(value, key);
   });
   if (!found) throw Error("unknown key '" + key + "'");
+}
+
+namespace {
+
+template <typename T>
+const char* type_name() {
+  if constexpr (std::is_same_v<T, bool>) return "bool";
+  else if constexpr (std::is_enum_v<T>) return "name";
+  else if constexpr (std::is_floating_point_v<T>) return "number";
+  else if constexpr (std::is_same_v<T, std::string>) return "path";
+  else return "integer";
+}
+
+template <typename T>
+std::string range_text(const KeyDoc& doc) {
+  if constexpr (std::is_same_v<T, bool>) return "true, false";
+  else if constexpr (std::is_same_v<T, std::string>) return "a file, or empty";
+  else if constexpr (std::is_enum_v<T>) {
+    std::string out;
+    for (const auto& [value, name] : enum_names<T>()) out += (out.empty() ? "" : ", ") + std::string(name);
+    return out;
+  } else return "[" + yaml_value(static_cast<T>(doc.min)) + ", " + yaml_value(static_cast<T>(doc.max)) + "]";
+}
+
+// Words of `text` on lines of at most `width` characters, each after `indent`.
+std::string wrapped(const std::string& text, const std::string& indent, size_t width) {
+  std::istringstream words(text);
+  std::string out, line, word;
+  while (words >> word) {
+    if (!line.empty() && line.size() + 1 + word.size() > width) {
+      out += indent + line + "\n";
+      line.clear();
+    }
+    line += (line.empty() ? "" : " ") + word;
+  }
+  return out + indent + line + "\n";
+}
+
+}  // namespace
+
+std::vector<ConfigKeyDoc> MappingConfig::documentation() {
+  std::vector<ConfigKeyDoc> out;
+  const MappingConfig defaults;
+  visit(defaults, [&](const char* s, const char* k, const auto& field, const KeyDoc& doc) {
+    using T = std::decay_t<decltype(field)>;
+    out.push_back({s, k, type_name<T>(), yaml_value(field), doc.unit, range_text<T>(doc), doc.module, doc.meaning});
+  });
+  return out;
+}
+
+std::string config_reference_text() {
+  std::ostringstream out;
+  char line[256];
+  std::snprintf(line, sizeof(line), "%-40s %-8s %-10s %-5s %-24s %s\n", "KEY", "TYPE", "DEFAULT", "UNIT", "RANGE", "MODULE");
+  out << line;
+  for (const ConfigKeyDoc& d : MappingConfig::documentation()) {
+    std::snprintf(line, sizeof(line), "%-40s %-8s %-10s %-5s %-24s %s\n", (d.section + "." + d.key).c_str(), d.type.c_str(),
+                  d.default_value.c_str(), d.unit.c_str(), d.range.c_str(), d.module.c_str());
+    out << line << wrapped(d.meaning, "    ", 96);
+  }
+  return out.str();
+}
+
+std::string config_reference_markdown() {
+  std::ostringstream out;
+  out << "<!-- Generated from the config table (src/gcmap/mapping/config.cpp) by `gcmap config --describe --markdown > "
+         "docs/config.md`; do not edit by hand (a unit test compares). -->\n"
+      << "# Configuration\n\n"
+      << "Every key of the YAML file that `--config` takes (`gcmap map`, `localize`, `merge`, `calibrate`, `config`). Every key "
+         "is "
+         "optional and keeps its default when left out; an unknown key, a value of the wrong type or one outside its range is an "
+         "error naming the key and the file. `gcmap config` prints the defaults as YAML, `gcmap config --config FILE` checks a "
+         "file, and `gcmap config --describe` prints this table. Ranges are inclusive; the module is the source folder "
+         "(src/gcmap/...) of the code that reads the key.\n";
+  std::string section;
+  for (const ConfigKeyDoc& d : MappingConfig::documentation()) {
+    if (d.section != section) {
+      section = d.section;
+      out << "\n## " << section
+          << "\n\n| key | type | default | unit | range | module | meaning |\n|---|---|---|---|---|---|---|\n";
+    }
+    out << "| `" << d.key << "` | " << d.type << " | `" << d.default_value << "` | " << d.unit << " | " << d.range << " | "
+        << d.module << " | " << d.meaning << " |\n";
+  }
+  return out.str();
 }
 
 }  // namespace gcmap

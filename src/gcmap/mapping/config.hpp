@@ -2,7 +2,9 @@
 // The one config of a run: a section per module with the paper's defaults (Koide et al., RA-L
 // 2021), loadable from YAML. Every key is optional; an unknown key is an error naming it. The
 // modules below mapping/ define their own sections (PreprocessConfig, OdometryConfig, LoopConfig);
-// the sections of mapping/ and of the session commands above it are defined here.
+// the sections of mapping/ and of the session commands above it are defined here. Each key's
+// meaning, unit, valid range and reading module are in the one table of config.cpp (`visit`),
+// which loading, dumping, validation and docs/config.md all follow.
 #include <string>
 #include <variant>
 #include <vector>
@@ -31,9 +33,9 @@ GlobalMode parse_global_mode(const std::string& text, const std::string& key);
 FactorSource parse_factor_source(const std::string& text, const std::string& key);
 
 struct LocalMappingConfig {
-  double th_max = 0.95;   // skip a frame whose overlap with the last keyframe exceeds this
-  double th_min = 0.10;   // close the submap when overlap(first, last) falls below this
-  int max_keyframes = 15; // N_max
+  double th_max = 0.95;           // skip a frame whose overlap with the last keyframe exceeds this
+  double th_min = 0.10;           // close the submap when overlap(first, last) falls below this
+  int max_keyframes = 15;         // N_max
   double voxel_resolution = 0.5;  // keyframe voxel maps for the in-submap factors
   double submap_downsample = 0.25;
   int max_submap_points = 60000;
@@ -46,14 +48,14 @@ struct GlobalMappingConfig {
   double th_min = 0.025;          // th_min_G: overlap needed for a matching-cost factor
   double voxel_resolution = 0.5;  // r_G (see README: 1 m tilts noisy maps)
   GlobalMode mode = GlobalMode::full;
-  int window = 5;                 // sliding-window: connect to this many predecessors
+  int window = 5;  // sliding-window: connect to this many predecessors
   FactorSource factor = FactorSource::vgicp;
-  int max_iterations = 10;        // per insertion (warm-started)
+  int max_iterations = 10;           // per insertion (warm-started)
   double relative_error_tol = 1e-4;  // per insertion; the final optimization runs to 1e-6
   int final_iterations = 50;
   Relinearize relinearize = Relinearize::moved;
-  // Norm of a factor's relative-pose change [rad, m] since its linearization. GLIM's iSAM2 uses
-  // 0.1; on city's first 1500 frames, 0.02 / 0.01 / 0.005 gave t_rel 8.7 / 3.5 / 0.9 % above always.
+  // Norm of a factor's relative-pose change [rad, m] since its linearization; lower stays closer
+  // to `always` at more cost (docs/benchmarks.md). GLIM's iSAM2 uses 0.1.
   double relinearize_threshold = 0.01;
   // Per LM iteration of an insertion, at most this many moved factors are linearized anew (those
   // that moved most; 0: no limit), which bounds an insertion's cost where a revisit moves much of
@@ -72,14 +74,13 @@ struct LocalizationConfig {
   double min_overlap = 0.3;
   double submap_radius = 120.0;  // m: prior submaps whose origin is this close are candidates
   // ... of which those overlapping the frame most are matched, at most this many: cost grows with
-  // each, accuracy hardly (a city map offers 30-49 within the radius).
+  // each, accuracy hardly.
   int max_submaps = 8;
   // Global initialization: a ScanContext candidate is accepted when GICP aligns at least this
   // fraction of the scan within loop.inlier_distance (a scan sees beyond one submap).
   double min_inlier_fraction = 0.3;
   // ... and their point-to-plane RMSE is at most this (m): one noisy scan against a submap, looser
-  // than loop.max_inlier_rmse for two submaps. At 0.03 m, route 1 of the realistic `city` found
-  // its place on route 0's map 200 frames later than at 0.07 m.
+  // than loop.max_inlier_rmse for two submaps; a strict bound finds the place much later.
   double max_inlier_rmse = 0.07;
   int relocalize_every = 5;  // frames between global initialization attempts while lost
 };
@@ -93,18 +94,22 @@ struct MergeConfig {
   // A place between sessions is accepted when GICP aligns at least min_inlier_fraction of the
   // source submap within loop.inlier_distance, at a point-to-plane RMSE of at most
   // loop.max_inlier_rmse or of at most max_rmse_ratio times the RMSE at which each of the two
-  // submaps meets its neighbour in its own session (the noise the sessions themselves show). An
-  // absolute bound cannot serve both: on the small block, true places verify at 0.025 m (2 cm
-  // range noise) and at 0.065-0.075 m (every realism on), another world's houses along the same
-  // streets at 0.068 m among 2 cm-noise sessions.
+  // submaps meets its neighbour in its own session (the noise the sessions themselves show): no
+  // absolute bound separates true places in noisy sessions from wrong ones in clean sessions.
   double min_inlier_fraction = 0.5;
   double max_rmse_ratio = 1.5;
-  int max_iterations = 50;     // joint LM over all sessions
+  int max_iterations = 50;  // joint LM over all sessions
 };
 
 struct OutputConfig {
   double map_resolution = 0.1;
   bool pcd = false;
+};
+
+// One key of the config table (mapping/config.cpp), as `gcmap config --describe` and docs/config.md
+// show it: values as YAML text, the range as words.
+struct ConfigKeyDoc {
+  std::string section, key, type, default_value, unit, range, module, meaning;
 };
 
 struct MappingConfig {
@@ -122,7 +127,10 @@ struct MappingConfig {
   // The same on YAML text in memory (fuzzed); `name` stands for the path in messages.
   static MappingConfig parse(const std::string& yaml, const std::string& name);
   std::string to_yaml() const;
+  // Every key in its range (the table's), then the checks between keys; throws Error naming the key.
   void validate() const;
+  // Every key with its default, unit, range, module and meaning, in YAML order.
+  static std::vector<ConfigKeyDoc> documentation();
 
   // Every field by its "section.key" name, for front ends that set fields one by one (the Python
   // package); enums as their YAML names. Unknown keys and values of the wrong type throw Error
@@ -132,5 +140,9 @@ struct MappingConfig {
   Value get(const std::string& key) const;
   void set(const std::string& key, const Value& value);
 };
+
+// The documentation of every key: a plain-text table (`gcmap config --describe`) and docs/config.md.
+std::string config_reference_text();
+std::string config_reference_markdown();
 
 }  // namespace gcmap

@@ -8,6 +8,7 @@
 
 namespace gcmap {
 
+// Each key's meaning, unit and valid range: the config table (mapping/config.cpp), docs/config.md.
 struct OdometryConfig {
   double voxel_resolution = 1.0;  // scan-to-model VGICP
   int model_keyframes = 10;       // recent keyframes in the local model
@@ -20,14 +21,13 @@ struct OdometryConfig {
   double max_gap = 2.0;  // s
   // A registration matching fewer than retry_inlier_fraction of the points is retried (zero
   // motion, coarser voxels); if it still does and lands over retry_distance m from the prediction,
-  // the frame is placed by the prediction. In our simulated drives good matches reach 0.89-0.96.
+  // the frame is placed by the prediction.
   double retry_distance = 1.0;
   double retry_inlier_fraction = 0.7;
   // Before any motion is known (the second frame, or after a gap of max_gap) the guess is standing
-  // still, which a scan-to-scan cost on 1 m voxels confirms even at 27 m/s: the ground rings of
-  // one sensor pose fall on themselves, and road-parallel structure does not object. The search
-  // starts on voxels this large (m), where the rings blur into a plane (4 m is not enough on a
-  // simulated highway with a per-beam elevation bias).
+  // still, which a scan-to-scan cost on fine voxels confirms even at speed: the ground rings of one
+  // sensor pose fall on themselves, and road-parallel structure does not object. The search starts
+  // on voxels this large (m), where the rings blur into a plane.
   double start_voxel_resolution = 8.0;
 };
 

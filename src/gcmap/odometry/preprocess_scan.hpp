@@ -6,6 +6,7 @@
 
 namespace gcmap {
 
+// Each key's meaning, unit and valid range: the config table (mapping/config.cpp), docs/config.md.
 struct PreprocessConfig {
   double min_range = 2.0;  // m: drops returns from the ego vehicle
   double max_range = 100.0;
