@@ -10,29 +10,39 @@
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/sequence.hpp"
 #include "gcmap/io/trajectory_io.hpp"
+#include "progress.hpp"
 
 namespace gcmap::cli {
 
-Json trajectory_report(const Poses& gt, const Poses& est) {
-  const KittiError k = kitti_relative_error(gt, est);
-  const AbsoluteError a = absolute_trajectory_error(gt, est);
-  const RelativePoseError r = relative_pose_error(gt, est);
-  Json out = Json::object();
+namespace {
+
+// A length without segments has no error: null, never 0 (which reads as a perfect score).
+Json percent_or_null(double value, size_t count) { return count ? Json(value) : Json(); }
+
+Json kitti_json(const KittiError& k) {
   Json kj = Json::object();
-  kj["translation_percent"] = k.translation_percent;
-  kj["rotation_deg_per_100m"] = k.rotation_deg_per_100m;
+  kj["translation_percent"] = percent_or_null(k.translation_percent, k.num_segments);
+  kj["rotation_deg_per_100m"] = percent_or_null(k.rotation_deg_per_100m, k.num_segments);
   kj["num_segments"] = k.num_segments;
+  if (!k.num_segments) kj["note"] = "no segment of 100 m or more: the KITTI relative error is undefined";
   Json per = Json::array();
   for (const auto& s : k.per_length) {
     Json sj = Json::object();
     sj["length_m"] = s.length;
     sj["count"] = s.count;
-    sj["translation_percent"] = s.translation_percent;
-    sj["rotation_deg_per_100m"] = s.rotation_deg_per_100m;
+    sj["translation_percent"] = percent_or_null(s.translation_percent, s.count);
+    sj["rotation_deg_per_100m"] = percent_or_null(s.rotation_deg_per_100m, s.count);
     per.push_back(sj);
   }
   kj["per_length"] = per;
-  out["kitti"] = kj;
+  return kj;
+}
+
+Json trajectory_report(const Poses& gt, const Poses& est, const KittiError& k) {
+  const AbsoluteError a = absolute_trajectory_error(gt, est);
+  const RelativePoseError r = relative_pose_error(gt, est);
+  Json out = Json::object();
+  out["kitti"] = kitti_json(k);
   Json aj = Json::object();
   aj["rmse"] = a.rmse;
   aj["mean"] = a.mean;
@@ -48,6 +58,8 @@ Json trajectory_report(const Poses& gt, const Poses& est) {
   out["rpe"] = rj;
   return out;
 }
+
+}  // namespace
 
 void add_eval(CLI::App& app, Runner& run) {
   struct Options {
@@ -74,7 +86,11 @@ void add_eval(CLI::App& app, Runner& run) {
       }
       if (gt.size() != est.size())
         throw Error(opt->est + ": has " + std::to_string(est.size()) + " poses, " + opt->gt + " has " + std::to_string(gt.size()));
-      std::cout << trajectory_report(gt.poses, est.poses).dump() << std::endl;
+      if (gt.size() < 2) throw Error(opt->gt + ": has 1 pose, eval needs at least 2");
+      const KittiError k = kitti_relative_error(gt.poses, est.poses);
+      if (!k.num_segments)
+        std::cerr << opt->gt << ": no segment of 100 m or more, the KITTI relative error is undefined (null); ATE and RPE apply\n";
+      std::cout << trajectory_report(gt.poses, est.poses, k).dump() << std::endl;
       return 0;
     };
   });
@@ -85,6 +101,7 @@ void add_mme(CLI::App& app, Runner& run) {
     std::string map, clouds, poses, bin_fields = "xyzi";
     double radius = 0.3, downsample = 0.0;
     int min_neighbors = 15, threads = 0;
+    bool quiet = false;
   };
   auto opt = std::make_shared<Options>();
   auto* cmd = app.add_subcommand("mme", "Mean map entropy of a map (or of scans assembled with poses)");
@@ -96,6 +113,7 @@ void add_mme(CLI::App& app, Runner& run) {
   cmd->add_option("--downsample", opt->downsample, "With --clouds: voxel-downsample the assembled map (0 = off)")->capture_default_str();
   cmd->add_option("--bin-fields", opt->bin_fields, "Layout of .bin files: xyzi or xyz")->capture_default_str();
   cmd->add_option("--threads", opt->threads, "Worker threads (0 = all cores)")->capture_default_str();
+  cmd->add_flag("--quiet", opt->quiet, "No progress on stderr");
   cmd->callback([opt, &run] {
     run = [opt] {
       const auto threads = limit_threads(opt->threads);
@@ -108,16 +126,22 @@ void add_mme(CLI::App& app, Runner& run) {
         if (traj.size() != files.size())
           throw Error(opt->poses + ": has " + std::to_string(traj.size()) + " poses for " + std::to_string(files.size()) + " scans");
         const BinFields fields = parse_bin_fields(opt->bin_fields);
+        Progress reading("mme: scan", files.size(), opt->quiet);
         for (size_t k = 0; k < files.size(); ++k) {
           const PointCloud c = transformed(read_point_cloud(files[k], fields), traj.poses[k]);
           map.points.insert(map.points.end(), c.points.begin(), c.points.end());
+          reading.update(k + 1, std::to_string(map.size()) + " points");
         }
+        reading.finish();
         if (opt->downsample > 0) map = voxel_downsample(map, opt->downsample);
       } else {
         if (opt->map.empty()) throw Error("give a MAP file or --clouds DIR --poses POSES");
         map = read_point_cloud(opt->map, parse_bin_fields(opt->bin_fields));
       }
-      const MapEntropy e = mean_map_entropy(map, opt->radius, opt->min_neighbors);
+      Progress points("mme: point", map.size(), opt->quiet);
+      const MapEntropy e = mean_map_entropy(map, opt->radius, opt->min_neighbors,
+                                            [&](size_t done, size_t) { points.update(done); });
+      points.finish();
       Json out = Json::object();
       out["mme"] = e.mean;
       out["stddev"] = e.stddev;

@@ -25,14 +25,19 @@ void Progress::update(size_t done, const std::string& detail) {
   const double t = seconds();
   const bool last = total_ && done == total_;
   if (!last && t - last_log_s_ < (tty_ ? 0.2 : 5.0)) return;
+  draw(done, detail);
+}
+
+void Progress::draw(size_t done, const std::string& detail) {
+  const double t = seconds();
   last_log_s_ = t;
   const double rate = t > 0 ? done / t : 0.0;
   std::string line = what_ + " " + std::to_string(done);
   if (total_) line.append("/").append(std::to_string(total_));
   char buf[64];
   std::snprintf(buf, sizeof buf, "  %.1f/s", rate);
-  line += buf;
-  if (total_ && rate > 0 && done < total_) line += "  ETA " + eta_text((total_ - done) / rate);
+  if (rate_) line += buf;
+  if (rate_ && total_ && rate > 0 && done < total_) line += "  ETA " + eta_text((total_ - done) / rate);
   if (!detail.empty()) line += "  " + detail;
   if (tty_) {
     std::fprintf(stderr, "\r%s\033[K", line.c_str());
@@ -40,6 +45,15 @@ void Progress::update(size_t done, const std::string& detail) {
   } else {
     spdlog::info("{}", line);
   }
+}
+
+void Progress::step(size_t done, const std::string& detail) {
+  if (!quiet_) draw(done, detail);
+}
+
+void Progress::finish(size_t done, const std::string& detail) {
+  if (!quiet_) draw(done, detail);
+  finish();
 }
 
 void Progress::finish() {

@@ -6,7 +6,9 @@
 #include <tbb/parallel_sort.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <mutex>
 #include <optional>
 
 #include "gcmap/core/error.hpp"
@@ -160,7 +162,7 @@ struct Acc {
 
 }  // namespace
 
-MapEntropy mean_map_entropy(const PointCloud& map, double radius, int min_neighbors) {
+MapEntropy mean_map_entropy(const PointCloud& map, double radius, int min_neighbors, const EntropyProgress& progress) {
   if (!(radius > 0.0)) throw Error("--radius: must be positive");
   if (min_neighbors < 4) throw Error("--min-neighbors: must be at least 4");
   MapEntropy out;
@@ -170,6 +172,13 @@ MapEntropy mean_map_entropy(const PointCloud& map, double radius, int min_neighb
   }
   const CellGrid grid(map.points, radius);
   const float r2 = static_cast<float>(radius * radius);
+  std::atomic<size_t> done{0};
+  std::mutex reporting;
+  const auto report = [&](size_t points) {
+    done += points;
+    std::unique_lock<std::mutex> lock(reporting, std::try_to_lock);  // a busy reporter is not waited for
+    if (lock) progress(done.load(), map.size());
+  };
   const Acc acc = tbb::parallel_deterministic_reduce(
       tbb::blocked_range<size_t>(0, grid.cell_keys.size(), 16), Acc{},
       [&](const tbb::blocked_range<size_t>& r, Acc a) {
@@ -187,6 +196,7 @@ MapEntropy mean_map_entropy(const PointCloud& map, double radius, int min_neighb
             ++a.n;
           }
         }
+        if (progress) report(grid.cell_begin[r.end()] - grid.cell_begin[r.begin()]);
         return a;
       },
       [](Acc a, const Acc& b) {

@@ -1,4 +1,6 @@
 #pragma once
+#include <functional>
+
 #include "gcmap/core/point_cloud.hpp"
 
 namespace gcmap {
@@ -11,6 +13,9 @@ struct MapEntropy {
   size_t num_points = 0;     // points that contributed
   size_t num_skipped = 0;    // too few neighbours or degenerate covariance
 };
-MapEntropy mean_map_entropy(const PointCloud& map, double radius = 0.3, int min_neighbors = 15);
+// progress(points done, points in all), for a person: from one worker thread at a time.
+using EntropyProgress = std::function<void(size_t done, size_t total)>;
+MapEntropy mean_map_entropy(const PointCloud& map, double radius = 0.3, int min_neighbors = 15,
+                            const EntropyProgress& progress = {});
 
 }  // namespace gcmap

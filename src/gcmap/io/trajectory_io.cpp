@@ -35,6 +35,15 @@ bool rotation_block_ok(const double* m) {
   return (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-2 && R.determinant() > 0;
 }
 
+// Beyond this a position is garbage, not a place on or near Earth (its radius is 6.4e6 m); it
+// would overflow the metrics' sums and squares into inf or NaN.
+constexpr double kMaxTranslation = 1e7;  // m
+
+void check_translation(const Eigen::Isometry3d& T, const std::string& where) {
+  if (T.translation().cwiseAbs().maxCoeff() > kMaxTranslation)
+    throw Error(where + "translation beyond 1e7 m (10,000 km): not a position");
+}
+
 Eigen::Isometry3d pose_from_rows(const double* m) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   for (int r = 0; r < 3; ++r) {
@@ -87,11 +96,13 @@ Trajectory parse_trajectory(std::string_view text, const std::string& path) {
     if (fmt == TrajectoryFormat::kitti) {
       if (!rotation_block_ok(v)) throw Error(where + "the 3x3 block is not a rotation matrix");
       traj.poses.push_back(pose_from_rows(v));
+      check_translation(traj.poses.back(), where);
     } else {
       const double qn = std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]);
       if (qn < 1e-6) throw Error(where + "zero quaternion");
       if (!std::isfinite(qn)) throw Error(where + "quaternion too large to normalize");
       traj.poses.push_back(pose_from_xyz_quat(v));
+      check_translation(traj.poses.back(), where);
       if (fmt == TrajectoryFormat::tum) {
         if (!std::isfinite(first)) throw Error(where + "non-finite timestamp");
         traj.stamps.push_back(first);
@@ -139,7 +150,9 @@ Eigen::Isometry3d parse_kitti_calib_tr(std::string_view text, const std::string&
       for (int k = 0; k < 12; ++k)
         if (!to_double(tok[k + 1], v[k]) || !std::isfinite(v[k])) throw Error(path + ": bad number in Tr");
       if (!rotation_block_ok(v)) throw Error(path + ": the 3x3 block of Tr is not a rotation matrix");
-      return pose_from_rows(v);
+      const Eigen::Isometry3d Tr = pose_from_rows(v);
+      check_translation(Tr, path + ": Tr: ");
+      return Tr;
     }
   }
   throw Error(path + ": no 'Tr:' line");

@@ -19,7 +19,8 @@ struct Trajectory {
 };
 
 // Detects the format from the first data line; every line must agree. Comments (#) and blank lines
-// are skipped. Throws Error("PATH:LINE: ...") on anything malformed or non-finite.
+// are skipped. Throws Error("PATH:LINE: ...") on anything malformed or non-finite, and on a
+// translation component beyond 1e7 m (no position on Earth; it would overflow the metrics).
 Trajectory read_trajectory(const std::string& path);
 // The same on text in memory (fuzzed); `name` stands for the path in messages.
 Trajectory parse_trajectory(std::string_view text, const std::string& name);
