@@ -37,7 +37,7 @@ void add_simulate(CLI::App& app, Runner& run) {
       cmd->add_option("--compression", *compression, "Bag chunks: none; mcap: zstd or lz4; bag: bz2 or lz4")
           ->capture_default_str();
   cmd->add_option("--scenario", opt->scenario,
-                  "loop, small, corridor (ideal by default), city, highway, forest (realistic by default)")
+                  "loop, small, corridor (ideal by default), tunnel, city, highway, forest (realistic by default)")
       ->capture_default_str();
   cmd->add_option("--frames", opt->frames,
                   "Number of frames (0 = the scenario's default; city, highway, forest: the first N frames of the drive)")

@@ -16,8 +16,10 @@
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/sequence.hpp"
 #include "gcmap/session/session.hpp"
+#include "gcmap/viz/report_html.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "gcmap/mapping/pipeline.hpp"
+#include "gcmap/mapping/quality.hpp"
 #include "gcmap/mapping/report.hpp"
 #include "progress.hpp"
 
@@ -104,6 +106,8 @@ class SignalScope {
 
 void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapRunOptions& o, int signal,
                    const std::vector<std::string>& input_warnings) {
+  const QualityReport quality = assess_quality(pipeline);
+  for (const std::string& line : quality.verdict) spdlog::info("quality: {}", line);
   write_folder_contents_atomic(o.output, [&](const std::string& staging) {
     const fs::path out(staging);
     Trajectory traj;
@@ -131,6 +135,8 @@ void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapR
     stats["host_memory"] = host_memory_json(pipeline);
     if (const auto* gpu = dynamic_cast<const cuda::CudaBackend*>(&pipeline.backend())) stats["device_memory"] = device_memory_json(*gpu, pipeline);
     write_file_atomic((out / "stats.json").string(), [&](std::ostream& s) { s << stats.dump() << "\n"; });
+    write_file_atomic((out / "quality.json").string(), [&](std::ostream& s) { s << quality_json(quality).dump() << "\n"; });
+    write_file_atomic((out / "report.html").string(), [&](std::ostream& s) { s << viz::report_html(quality, pipeline); });
     write_file_atomic((out / "config.yaml").string(), [&](std::ostream& s) { s << o.config.to_yaml(); });
     write_session((out / "session").string(), pipeline, traj.stamps);
   });

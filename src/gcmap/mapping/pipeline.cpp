@@ -132,6 +132,9 @@ MappingPipeline::Tracked MappingPipeline::track_frame(PreparedScan scan, std::op
   f.T_odom = e.T_world_frame;
   f.deskewed = e.deskewed;
   f.odometry_failed = e.failed;
+  f.registration = e.quality;
+  f.deskew_shift = e.deskew_shift;
+  frame_figures_.push_back({e.quality, e.deskew_shift, scan.cloud != nullptr});
   if (e.revised) odometry_poses_[e.revised->frame] = e.revised->T_world_frame;
   if (f.odometry_failed) {
     spdlog::warn("scan {}: odometry failed (too few matches, or far from the prediction with little overlap), "

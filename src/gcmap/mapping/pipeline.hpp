@@ -38,6 +38,8 @@ struct Frame {
   size_t points = 0;    // after preprocessing
   bool deskewed = false;
   bool odometry_failed = false;  // registration rejected (see Odometry::estimate): placed by the prediction
+  RegistrationQuality registration;  // the odometry's registration of it (mapping/quality.hpp)
+  double deskew_shift = 0.0;         // m, mean over points
 };
 
 struct PipelineStats {
@@ -103,6 +105,13 @@ class MappingPipeline {
   size_t num_frames() const { return stamps_.size(); }
   const std::vector<double>& stamps() const { return stamps_; }
   const std::vector<FrameStatus>& statuses() const { return statuses_; }
+  // Per frame: the odometry's registration figures and deskewing shift (Frame's), for quality.json.
+  struct FrameFigures {
+    RegistrationQuality registration;
+    double deskew_shift = 0.0;
+    bool usable = false;  // a scan the odometry could take
+  };
+  const std::vector<FrameFigures>& frame_figures() const { return frame_figures_; }
   std::vector<Eigen::Isometry3d> trajectory() const { return mapper_.trajectory(); }
   // The odometry's poses; a deskewed sweep's is revised once the next frame is registered (see
   // preprocess.redeskew), so it may differ from the T_odom its Frame returned.
@@ -134,6 +143,7 @@ class MappingPipeline {
   Mapper mapper_;
   std::vector<double> stamps_;
   std::vector<FrameStatus> statuses_;
+  std::vector<FrameFigures> frame_figures_;  // track_frame's
   std::vector<Eigen::Isometry3d> odometry_poses_;
   size_t unusable_scans_ = 0, odometry_failures_ = 0;  // track_frame's
   size_t unusable_frames_ = 0;                        // map_frame's

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Eigenvalues>
+
 #include "gcmap/core/se3.hpp"
 #include "gcmap/registration/registration.hpp"
 
@@ -17,7 +19,31 @@ constexpr double kEqualIntervals = 1e-4;
 constexpr double kSteadyRatio = 1.5;
 constexpr int kMaxFailedStreak = 3;
 
+RegistrationQuality registration_quality(const RegistrationResult& r, size_t points) {
+  RegistrationQuality q;
+  q.registered = true;
+  q.inlier_fraction = points ? static_cast<double>(r.num_inliers) / points : 0.0;
+  if (r.num_inliers == 0) return q;
+  // Rotation first, translation last (se3_exp); the translation information once rotation is free.
+  const Eigen::Matrix3d Hrr = r.H.topLeftCorner<3, 3>(), Hrt = r.H.topRightCorner<3, 3>();
+  const Eigen::Matrix3d Htt = r.H.bottomRightCorner<3, 3>() - Hrt.transpose() * Hrr.ldlt().solve(Hrt);
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(0.5 * (Htt + Htt.transpose()) / r.num_inliers);
+  q.translation_information = eig.eigenvalues().cwiseMax(0.0);
+  q.weak_direction = eig.eigenvectors().col(0);
+  return q;
+}
+
 }  // namespace
+
+const char* to_string(OdometryFailure f) {
+  switch (f) {
+    case OdometryFailure::none: return "none";
+    case OdometryFailure::no_matches: return "hardly any point matched the local model";
+    case OdometryFailure::stops_short: return "the registration stopped short of the constant-velocity prediction";
+    case OdometryFailure::far_with_low_overlap: return "few points matched and the result lay far from the prediction";
+  }
+  return "";
+}
 
 Odometry::Odometry(const OdometryConfig& config, std::shared_ptr<LinearizationBackend> backend)
     : config_(config), backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()) {}
@@ -70,6 +96,7 @@ Eigen::Isometry3d Odometry::track(const std::shared_ptr<const PointCloud>& frame
   const bool usable = frame && frame->size() >= 100 && frame->has_covs();
   if (ok) *ok = usable;
   last_failed_ = false;
+  last_quality_ = {};
   if (!usable) {
     const Eigen::Isometry3d T = predict(stamp);
     set_pose(T, stamp);
@@ -80,7 +107,7 @@ Eigen::Isometry3d Odometry::track(const std::shared_ptr<const PointCloud>& frame
     add_keyframe(frame, last_);
     return last_;
   }
-  const Eigen::Isometry3d T = estimate(*frame, predict(stamp), guess_kind(stamp), &last_failed_);
+  const Eigen::Isometry3d T = estimate(*frame, predict(stamp), guess_kind(stamp), &last_failed_, &last_quality_);
   accept(frame, T, stamp, last_failed_);
   return last_;
 }
@@ -104,8 +131,9 @@ std::shared_ptr<const GaussianVoxelMap> Odometry::model_at(double resolution) co
 }
 
 Eigen::Isometry3d Odometry::estimate(const PointCloud& frame, const Eigen::Isometry3d& guess, Guess kind,
-                                     bool* failed) const {
+                                     bool* failed, RegistrationQuality* quality) const {
   if (failed) *failed = false;
+  if (quality) *quality = {};
   if (!model_) return guess;
   RegistrationConfig reg;
   reg.max_iterations = config_.max_iterations;
@@ -114,6 +142,8 @@ Eigen::Isometry3d Odometry::estimate(const PointCloud& frame, const Eigen::Isome
     const Eigen::Isometry3d coarse = backend_->align(frame, model_at(config_.start_voxel_resolution), guess, reg).T_target_source;
     const RegistrationResult r = backend_->align(frame, model_, coarse, reg);
     if (failed) *failed = r.num_inliers <= 50;
+    if (quality) *quality = registration_quality(r, frame.size());
+    if (quality && r.num_inliers <= 50) quality->failure = OdometryFailure::no_matches;
     return r.num_inliers <= 50 ? guess : r.T_target_source;
   }
   const double min_inliers = config_.retry_inlier_fraction * frame.size();
@@ -151,6 +181,12 @@ Eigen::Isometry3d Odometry::estimate(const PointCloud& frame, const Eigen::Isome
   }
   const bool bad = r.num_inliers <= 50 || (implausible && stops_short(r)) || (r.num_inliers < min_inliers && far(r));
   if (failed) *failed = bad;
+  if (quality) {
+    *quality = registration_quality(r, frame.size());
+    if (bad) quality->failure = r.num_inliers <= 50           ? OdometryFailure::no_matches
+                                : implausible && stops_short(r) ? OdometryFailure::stops_short
+                                                                : OdometryFailure::far_with_low_overlap;
+  }
   return bad ? guess : r.T_target_source;
 }
 

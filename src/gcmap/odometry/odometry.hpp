@@ -31,6 +31,25 @@ struct OdometryConfig {
   double start_voxel_resolution = 8.0;
 };
 
+// Why a frame was placed by the prediction instead of its registration (see Odometry::estimate).
+enum class OdometryFailure { none, no_matches, stops_short, far_with_low_overlap };
+const char* to_string(OdometryFailure f);
+
+// What a frame's accepted scan-to-model registration says about itself, from the Hessian the
+// registration built anyway (quality.json). Translation information is the Hessian's translation
+// block with the rotation marginalized (Schur complement), per inlier point.
+struct RegistrationQuality {
+  bool registered = false;  // false: no registration (first frame, unusable scan, external pose)
+  Eigen::Vector3d translation_information = Eigen::Vector3d::Zero();  // eigenvalues, ascending (1/m^2)
+  Eigen::Vector3d weak_direction = Eigen::Vector3d::UnitX();  // unit, in the frame: the least constrained translation
+  double inlier_fraction = 0.0;  // of the frame's points
+  OdometryFailure failure = OdometryFailure::none;
+  // Smallest over largest translation eigenvalue: 1 constrained alike in every direction, near 0 degenerate.
+  double conditioning() const {
+    return translation_information[2] > 0.0 ? translation_information[0] / translation_information[2] : 0.0;
+  }
+};
+
 // LiDAR-only front end: scan-to-model VGICP against a voxel map of recent keyframes, started from
 // a constant-velocity prediction that follows the scan stamps (frames without stamps are taken
 // as equally spaced).
@@ -62,12 +81,14 @@ class Odometry {
   // voxels. When the result still stops that short, or still matches so few and lands over
   // odometry.retry_distance from the guess, or hardly any point matches, the guess is returned
   // and *failed set.
+  // quality, when given, receives the figures of the registration returned (or why it failed).
   Eigen::Isometry3d estimate(const PointCloud& frame, const Eigen::Isometry3d& guess, Guess kind,
-                             bool* failed = nullptr) const;
+                             bool* failed = nullptr, RegistrationQuality* quality = nullptr) const;
   void accept(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T,
               std::optional<double> stamp = std::nullopt, bool failed = false);
   bool has_model() const { return model_ != nullptr; }
   bool last_failed() const { return last_failed_; }
+  const RegistrationQuality& last_quality() const { return last_quality_; }  // of track()'s last frame
 
   // The constant-velocity guess for a frame at `stamp` (also used for frames that fail to load):
   // the last motion scaled by the ratio of the intervals in the tangent space.
@@ -86,6 +107,7 @@ class Odometry {
   std::shared_ptr<LinearizationBackend> backend_;
   int frames_ = 0;
   bool last_failed_ = false;
+  RegistrationQuality last_quality_;
   int failed_streak_ = 0;  // frames placed by the prediction in a row
   Eigen::Isometry3d last_ = Eigen::Isometry3d::Identity(), previous_ = Eigen::Isometry3d::Identity();
   std::optional<double> last_stamp_, previous_stamp_;

@@ -15,6 +15,12 @@ double mean_time(const PointCloud& cloud) {
   return sum / static_cast<double>(cloud.size());
 }
 
+double mean_shift(const PointCloud& before, const PointCloud& after) {
+  double sum = 0.0;
+  for (size_t i = 0; i < before.size(); ++i) sum += (after.points[i] - before.points[i]).norm();
+  return before.empty() ? 0.0 : sum / static_cast<double>(before.size());
+}
+
 }  // namespace
 
 SweepOdometry::SweepOdometry(const OdometryConfig& config, const PreprocessConfig& preprocess,
@@ -43,6 +49,7 @@ SweepEstimate SweepOdometry::track(const std::shared_ptr<PointCloud>& cloud, dou
     const bool starts_model = !odometry_.has_model();
     e.T_world_frame = odometry_.track(cloud, stamp);
     e.failed = odometry_.last_failed();
+    e.quality = odometry_.last_quality();
     reference_ = {e.T_world_frame, stamp};
     if (starts_model && odometry_.has_model() && deskew_ && cloud->has_times())
       first_ = FirstSweep{*cloud, stamp, e.T_world_frame, frames_};
@@ -120,7 +127,7 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
     *cloud = raw;
     deskew(*cloud, m.velocity, m.acceleration, m.anchor);
     const Eigen::Isometry3d T_world_stamp =
-        odometry_.estimate(*cloud, T, pass == 0 ? kind : Odometry::Guess::steady, &e.failed);
+        odometry_.estimate(*cloud, T, pass == 0 ? kind : Odometry::Guess::steady, &e.failed, &e.quality);
     if (pass == 0 && kind == Odometry::Guess::rest) {
       // Registered undeskewed: only a first velocity, between the stamps.
       mean.velocity = se3_log(last_->first.inverse() * T_world_stamp) / dt;
@@ -137,6 +144,7 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
   }
   *cloud = raw;
   deskew(*cloud, m.velocity, m.acceleration, m.anchor);
+  e.deskew_shift = mean_shift(raw, *cloud);
   odometry_.accept(cloud, T, stamp, e.failed);
   reference_ = {T * m.T_stamp(t_mean), stamp + t_mean};
   if (e.failed) {  // placed by the prediction: no velocity measured

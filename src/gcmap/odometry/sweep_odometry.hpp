@@ -22,6 +22,8 @@ struct SweepEstimate {
   bool deskewed = false;
   bool failed = false;  // registration rejected (see Odometry::estimate): placed by the prediction
   bool lost = false;    // the last of failed frames in a row: the next usable frame starts a new model
+  RegistrationQuality quality;  // of the registration that placed the frame
+  double deskew_shift = 0.0;    // m: how far deskewing moved the points, on average (0 when not deskewed)
   // At the second frame, the first sweep (it entered the odometry's model smeared); later, the
   // previous sweep, once this one is registered (see SweepOdometry::revise_previous).
   std::optional<SweepRevision> revised;

@@ -97,7 +97,7 @@ void add_street_furniture(const BlockContext& ctx) {
 }  // namespace
 
 void build_city_blocks(World& world, uint64_t seed, float block, Eigen::Vector2i lo, Eigen::Vector2i hi,
-                       bool feature_poor) {
+                       bool feature_poor, Eigen::Vector2i tunnel) {
   std::mt19937_64 rng(seed);
   Uniform u(0.f, 1.f);
   const float street_half = kStreetHalf, sidewalk = kSidewalkWidth;
@@ -108,6 +108,11 @@ void build_city_blocks(World& world, uint64_t seed, float block, Eigen::Vector2i
       const float y0 = by * block + street_half + sidewalk, y1 = (by + 1) * block - street_half - sidewalk;
       if (x1 - x0 < 6.f || y1 - y0 < 6.f) continue;
       const BlockContext k{world, rng, u, x0, x1, y0, y1};
+      if (bx >= tunnel.x() && bx < tunnel.y()) {
+        const float gap = 2.f * (street_half + sidewalk);  // joins the next wall of the tunnel
+        k.ground_box(x0, y0, bx + 1 < tunnel.y() ? x1 + gap : x1, y1, 12.f, 0.3f, kBuilding);
+        continue;
+      }
       if (feature_poor) {
         // One long flat facade per block side: a degenerate corridor.
         k.ground_box(x0, y0, x1, y1, 12.f, 0.3f, kBuilding);

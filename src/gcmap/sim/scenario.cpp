@@ -65,6 +65,14 @@ Scenario make_scenario(const std::string& name, int frames, int route) {
     s.frames = 500;
     s.feature_poor = true;
     s.description = "a 500 m straight street between flat facades: degenerate along the street";
+  } else if (name == "tunnel") {
+    // Streets, then a 140 m canyon of flat walls entered while accelerating from rest, then streets.
+    s.block = 40.f;
+    add_waypoints(s, {{0, 0}, {6, 0}});
+    s.tunnel_from = 1, s.tunnel_to = 5;
+    s.realistic = true;
+    s.cruise_min = 12.f, s.cruise_max = 16.f;
+    s.description = "240 m from rest through a 140 m canyon of flat walls: degenerate along it while the speed changes";
   } else if (name == "city") {
     // 3.7 km over a 500 m x 500 m grid of 100 m blocks: a 1.2 km loop, then streets of it again in
     // the same direction (from 1.2 km and 3.4 km) and in the opposite one (from 2.6 km).
@@ -97,7 +105,7 @@ Scenario make_scenario(const std::string& name, int frames, int route) {
     s.description = "a 0.9 km hilly forest trail loop with hikers and cyclists: trees, bushes, rocks, "
                     "partial returns through canopies";
   } else {
-    throw Error("--scenario: expected loop, small, corridor, city, highway or forest, got '" + name + "'");
+    throw Error("--scenario: expected loop, small, corridor, tunnel, city, highway or forest, got '" + name + "'");
   }
   if (route < 0 || route >= num_routes(name))
     throw Error("--route: the '" + name + "' scenario has routes 0 to " + std::to_string(num_routes(name) - 1) + ", got " +

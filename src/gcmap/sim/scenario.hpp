@@ -19,6 +19,9 @@ struct Scenario {
   std::vector<Eigen::Vector2f> world_waypoints;
   int frames = 0;  // constant speed: frames spread evenly over the route; else 0 = the whole drive
   bool feature_poor = false;
+  // Blocks x in [tunnel_from, tunnel_to): one unbroken flat wall on each side of the streets along
+  // x, across the cross streets (a tunnel-like canyon, degenerate along it).
+  int tunnel_from = 0, tunnel_to = 0;
   bool realistic = false;  // realism on by default, traffic, sidewalks, a speed profile
   float corner_radius = 9.f, lane_offset = 2.f;
   // Speed profile (realistic scenarios): cruise speed drawn per 150 m within [cruise_min,
@@ -29,7 +32,7 @@ struct Scenario {
   Terrain terrain;
   std::string description;
 };
-// loop, small, corridor (evenly spaced frames, no realism by default), city, highway, forest.
+// loop, small, corridor, tunnel (evenly spaced frames, no realism by default), city, highway, forest.
 // `frames` > 0 overrides the frame count (for realistic scenarios: the first `frames` frames).
 // `route` > 0 drives another route through the same world (city, small and loop have more than one),
 // starting elsewhere and overlapping route 0 in part.

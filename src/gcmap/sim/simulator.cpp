@@ -36,7 +36,7 @@ std::unique_ptr<World> build_world(const Scenario& s, uint64_t seed, const Reali
     const Eigen::Vector2i blo(std::floor(lo.x()) - 1, std::floor(lo.y()) - 1), bhi(std::ceil(hi.x()) + 1, std::ceil(hi.y()) + 1);
     const Eigen::Vector2f origin(blo.x() * s.block - s.block, blo.y() * s.block - s.block);
     w = std::make_unique<World>(s.terrain, origin, origin + ((bhi - blo).array() + 2).cast<float>().matrix() * s.block);
-    build_city_blocks(*w, seed, s.block, blo, bhi, s.feature_poor);
+    build_city_blocks(*w, seed, s.block, blo, bhi, s.feature_poor, {s.tunnel_from, s.tunnel_to});
     if (r.curbs) add_sidewalks(*w, s.block, blo, bhi);
   } else {
     Eigen::Vector2f lo = centerline[0], hi = lo;
