@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 packages=(build-essential cmake pkg-config libeigen3-dev libtbb-dev libnanoflann-dev
   libcli11-dev libyaml-cpp-dev libspdlog-dev libgtest-dev libbenchmark-dev
   libcairo2-dev libpng-dev libjs-three chromium-headless-shell
-  libzstd-dev liblz4-dev libbz2-dev libsqlite3-dev
+  libzstd-dev liblz4-dev libbz2-dev libsqlite3-dev libproj-dev proj-bin
   pybind11-dev python3-dev python3-numpy python3-pytest
   clang libclang-rt-14-dev libsuitesparse-dev libopenblas0-pthread)
 missing=()
