@@ -123,7 +123,7 @@ std::vector<std::string> assumptions(const ExportOptions& o, const ExportMap& m,
   else
     a.push_back(scaling == IntensityScaling::unit ? "intensity: values in [0, 1] scaled by 65535"
                                                   : "intensity: raw values rounded, clamped to [0, 65535]");
-  a.push_back("gps time: 0 (points of merged submaps have no single scan stamp)");
+  a.push_back("gps time: 0 (map points are merged from many scans: no single scan stamp)");
   a.push_back("classification: 0, never classified (no labels in the map)");
   return a;
 }
