@@ -25,6 +25,15 @@ struct ImuNoise {
   double accel_bias_walk = 3.0e-4;  // m/s^3/sqrt(Hz)
 };
 
+// The future `imu:` config section (mapping/config.cpp owns the keys): how the IMU sits on the
+// LiDAR, its clock, its noise and the gravity it feels.
+struct ImuConfig {
+  Eigen::Isometry3d T_lidar_imu = Eigen::Isometry3d::Identity();  // a point in the IMU frame to the LiDAR frame
+  double time_offset = 0.0;                                       // s: an IMU stamp minus the LiDAR's stamp of the same instant
+  ImuNoise noise;
+  double gravity = kStandardGravity;  // m/s^2, along -z of the world
+};
+
 struct ImuBias {
   Eigen::Vector3d gyro = Eigen::Vector3d::Zero();
   Eigen::Vector3d accel = Eigen::Vector3d::Zero();
