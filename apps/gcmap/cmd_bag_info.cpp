@@ -1,12 +1,14 @@
 #include <algorithm>
 #include <ctime>
 #include <iomanip>
+#include <optional>
 #include <iostream>
 #include <sstream>
 
 #include "commands.hpp"
 #include "gcmap/core/error.hpp"
 #include "gcmap/io/bag_scans.hpp"
+#include "gcmap/io/imu_io.hpp"
 
 namespace gcmap::cli {
 
@@ -26,6 +28,27 @@ std::string field_list(const CloudTopicInfo& c) {
   std::string out;
   for (const PointField& f : c.fields) out += (out.empty() ? "" : ", ") + f.name + " " + point_field_type_name(f.datatype);
   return out;
+}
+
+// An IMU topic's rate and measured gravity, or why they cannot be had.
+struct ImuTopicInfo {
+  std::optional<ImuStream> stream;
+  std::string error;
+};
+ImuTopicInfo describe_imu_topic(BagReader& bag, const std::string& topic) {
+  try {
+    return {read_bag_imu(bag, topic), ""};
+  } catch (const Error& e) { return {std::nullopt, e.what()}; }
+}
+
+std::string imu_line(const ImuTopicInfo& info) {
+  if (!info.stream) return "    imu: " + info.error;
+  const ImuStream& s = *info.stream;
+  std::ostringstream o;
+  o << std::fixed << std::setprecision(1) << "    imu: " << s.rate << " Hz; gravity " << std::setprecision(3) << s.gravity
+    << " m/s^2 measured (median |acceleration|); acceleration in " << accel_unit_name(s.unit);
+  if (s.duplicates) o << "; " << s.duplicates << " repeated stamps dropped";
+  return o.str();
 }
 
 Json bag_json(BagReader& bag) {
@@ -59,6 +82,16 @@ Json bag_json(BagReader& bag) {
       tj["height"] = c.height;
       tj["point_time"] = c.time_field;
     }
+    if (is_imu_type(t.type) && t.message_count > 0) {
+      const ImuTopicInfo info = describe_imu_topic(bag, t.name);
+      if (info.stream) {
+        tj["imu_rate_hz"] = info.stream->rate;
+        tj["imu_gravity_m_s2"] = info.stream->gravity;
+        tj["imu_accel_unit"] = accel_unit_name(info.stream->unit);
+      } else {
+        tj["imu_error"] = info.error;
+      }
+    }
     topics.push_back(tj);
   }
   j["topics"] = topics;
@@ -85,6 +118,7 @@ void print_table(BagReader& bag) {
   const auto clouds = point_cloud_topics(bag);
   for (const BagTopic& t : bag.topics()) {
     std::cout << std::left << std::setw(int(name_w) + 2) << t.name << std::setw(int(type_w) + 2) << t.type << t.message_count << "\n";
+    if (is_imu_type(t.type) && t.message_count > 0) std::cout << imu_line(describe_imu_topic(bag, t.name)) << "\n";
     if (std::find(clouds.begin(), clouds.end(), t.name) == clouds.end() || t.message_count == 0) continue;
     const CloudTopicInfo c = describe_cloud_topic(bag, t.name);
     std::cout << "    points: " << c.width << " x " << c.height << "; fields: " << field_list(c) << "\n"

@@ -54,6 +54,17 @@ void add_simulate(CLI::App& app, Runner& run) {
   cmd->add_option("--realism", *realism,
                   "all, none, or the keys to enable: motion_distortion, moving_objects, labels, calibration, "
                   "range_noise, dropouts, mixed_pixels, spurious, curbs, vegetation (default: the scenario's)");
+  auto imu = std::make_shared<bool>(false), imu_noise_free = std::make_shared<bool>(false);
+  auto imu_config = std::make_shared<sim::ImuSimConfig>();
+  cmd->add_flag("--imu", *imu,
+                "Also an IMU: imu.txt (stamp, gyro rad/s, acceleration m/s^2), imu_bias.txt, and a bag's /imu "
+                "(sensor_msgs/Imu; acceleration in g with --message livox); scenario.json gives its noise, T_lidar_imu "
+                "and time offset");
+  auto* imu_rate = cmd->add_option("--imu-rate", imu_config->rate, "IMU sample rate in Hz")->capture_default_str();
+  auto* imu_offset = cmd->add_option("--imu-time-offset", imu_config->time_offset,
+                                     "IMU stamps = true time + this (s): the IMU clock's offset from the LiDAR's")
+                         ->capture_default_str();
+  auto* imu_ideal = cmd->add_flag("--imu-noise-free", *imu_noise_free, "An exact IMU: no white noise, no bias");
   cmd->callback([=, &run] {
     run = [=] {
       if (*ideal && !realism->empty()) throw Error("--ideal and --realism: give one of them");
@@ -68,6 +79,14 @@ void add_simulate(CLI::App& app, Runner& run) {
         throw Error("--time-field picks a PointCloud2 field: --message livox has its own (offset_time, ns)");
       output.time = sim::parse_time_field(*time_field, "--time-field");
       output.compression = sim::parse_compression(*compression, output.bag, "--compression");
+      if (!*imu && (imu_rate->count() || imu_offset->count() || imu_ideal->count()))
+        throw Error("--imu-rate, --imu-time-offset and --imu-noise-free need --imu");
+      if (*imu) {
+        if (!(imu_config->rate >= 10.0 && imu_config->rate <= 10000.0))
+          throw Error("--imu-rate: expected 10 to 10000 Hz, got " + std::to_string(imu_config->rate));
+        imu_config->noise = !*imu_noise_free;
+        output.imu = *imu_config;
+      }
       Stopwatch w;
       const size_t points = sim::write_simulation(*out, *opt, output, false);
       const std::string bag = output.bag ? ",\"bag\":\"" + sim::simulated_bag_path(*out, *output.bag) + "\"" : "";

@@ -120,6 +120,9 @@ class ScanBagWriter {
   // Recorded at the sweep's end (stamp + last point time).
   void write(const PointCloud& cloud, double stamp);
   void close() { writer_->close(); }
+  // The bag, for other topics beside the scans (the simulator's /imu).
+  BagWriter& writer() { return *writer_; }
+  MessageEncoding encoding() const { return encoding_; }
 
  private:
   std::unique_ptr<BagWriter> writer_;

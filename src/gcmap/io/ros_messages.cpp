@@ -1,5 +1,7 @@
 #include "gcmap/io/ros_messages.hpp"
 
+#include <array>
+
 #include "gcmap/core/error.hpp"
 #include "gcmap/io/bag_bytes.hpp"
 
@@ -183,6 +185,41 @@ std::string encode_livox(const LivoxMsg& m, MessageEncoding enc) {
   return s.take();
 }
 
+ImuMsg decode_imu(std::string_view msg, MessageEncoding enc, std::string_view where) {
+  Deserializer d(msg, enc, where);
+  ImuMsg m;
+  m.stamp_ns = d.header_stamp(m.frame_id);
+  const auto doubles = [&](double* out, int n) {
+    for (int k = 0; k < n; ++k) out[k] = d.num<double>();
+  };
+  std::array<double, 9> covariance;
+  doubles(m.orientation.data(), 4);
+  doubles(covariance.data(), 9);
+  doubles(m.angular_velocity.data(), 3);
+  doubles(covariance.data(), 9);
+  doubles(m.linear_acceleration.data(), 3);
+  doubles(covariance.data(), 9);
+  return m;
+}
+
+std::string encode_imu(const ImuMsg& m, MessageEncoding enc) {
+  Serializer s(enc, false);
+  s.header(m.stamp_ns, m.frame_id);
+  const auto doubles = [&](const double* v, int n) {
+    for (int k = 0; k < n; ++k) s.num<double>(v[k]);
+  };
+  const std::array<double, 9> unknown{};
+  doubles(m.orientation.data(), 4);
+  doubles(unknown.data(), 9);
+  doubles(m.angular_velocity.data(), 3);
+  doubles(unknown.data(), 9);
+  doubles(m.linear_acceleration.data(), 3);
+  doubles(unknown.data(), 9);
+  return s.take();
+}
+
+bool is_imu_type(std::string_view type) { return type == "sensor_msgs/Imu" || type == "sensor_msgs/msg/Imu"; }
+
 bool is_pointcloud2_type(std::string_view type) {
   return type == "sensor_msgs/PointCloud2" || type == "sensor_msgs/msg/PointCloud2";
 }
@@ -219,6 +256,12 @@ std::string message_definition(std::string_view type) {
            header_definition(ros2) + kRule + "MSG: " + std::string(package) +
            "/CustomPoint\nuint32 offset_time\nfloat32 x\nfloat32 y\nfloat32 z\nuint8 reflectivity\nuint8 tag\nuint8 line\n";
   }
+  if (is_imu_type(type))
+    return "std_msgs/Header header\ngeometry_msgs/Quaternion orientation\nfloat64[9] orientation_covariance\n"
+           "geometry_msgs/Vector3 angular_velocity\nfloat64[9] angular_velocity_covariance\n"
+           "geometry_msgs/Vector3 linear_acceleration\nfloat64[9] linear_acceleration_covariance\n" +
+           header_definition(ros2) + kRule + "MSG: geometry_msgs/Quaternion\nfloat64 x\nfloat64 y\nfloat64 z\nfloat64 w\n" +
+           kRule + "MSG: geometry_msgs/Vector3\nfloat64 x\nfloat64 y\nfloat64 z\n";
   return "";
 }
 
@@ -226,6 +269,7 @@ std::string message_md5(std::string_view type) {
   // ROS 1 md5sums (genmsg): the same for both Livox drivers, whose definitions are identical.
   if (is_pointcloud2_type(type)) return "1158d486dd51d683ce2f1be655c3c181";
   if (is_livox_type(type)) return "e4d6829bdfe657cb6c21a746c86b21a6";
+  if (is_imu_type(type)) return "6a62c6daae103f4ff57a132d6f95cec2";
   return "*";
 }
 

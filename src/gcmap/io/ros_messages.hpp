@@ -2,6 +2,7 @@
 // The LiDAR messages of ROS bags, decoded without ROS: sensor_msgs/PointCloud2 and Livox CustomMsg
 // (livox_ros_driver, livox_ros_driver2), in the ROS 1 serialization (little endian, packed) and in
 // ROS 2 CDR (XCDR1, little or big endian, aligned). Malformed messages throw Error("<where>: ...").
+#include <array>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -54,9 +55,22 @@ struct LivoxMsg {
 LivoxMsg decode_livox(std::string_view msg, MessageEncoding enc, std::string_view where);
 std::string encode_livox(const LivoxMsg& m, MessageEncoding enc);
 
+// sensor_msgs/Imu. The covariances are written as unknown (all zero) and not read back.
+struct ImuMsg {
+  int64_t stamp_ns = 0;  // header stamp
+  std::string frame_id;
+  std::array<double, 4> orientation{0, 0, 0, 1};  // x y z w
+  std::array<double, 3> angular_velocity{};       // rad/s
+  std::array<double, 3> linear_acceleration{};    // m/s^2 (the Livox driver: g)
+};
+
+ImuMsg decode_imu(std::string_view msg, MessageEncoding enc, std::string_view where);
+std::string encode_imu(const ImuMsg& m, MessageEncoding enc);
+
 // Message types as the bags name them (ROS 1 "pkg/Type", ROS 2 "pkg/msg/Type").
 bool is_pointcloud2_type(std::string_view type);
 bool is_livox_type(std::string_view type);
+bool is_imu_type(std::string_view type);
 // The .msg text (ROS 1 or ROS 2 dependencies, by the spelling of `type`) and the ROS 1 md5sum the
 // writers store with a topic of these types.
 std::string message_definition(std::string_view type);

@@ -5,12 +5,14 @@
 #include <tbb/parallel_for.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/timer.hpp"
 #include "gcmap/io/file.hpp"
+#include "gcmap/io/imu_io.hpp"
 #include "gcmap/io/json.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 
@@ -51,6 +53,18 @@ void write_kitti_scan(const fs::path& dir, size_t k, const PointCloud& c) {
   write_labels(dir, k, c);
 }
 
+// The ideal scenarios spread their route over the frames asked for: few frames make a fast,
+// violently accelerating drive, which the IMU then shows exactly.
+void warn_unrealistic(const std::vector<ImuSample>& samples, const Simulator& sim) {
+  double worst = 0.0;
+  for (const ImuSample& s : samples) worst = std::max(worst, std::abs(s.accel.norm() - kStandardGravity));
+  if (worst > kStandardGravity)
+    spdlog::warn(
+        "the simulated IMU feels up to {:.0f} m/s^2 besides gravity: the '{}' scenario drives its {:.0f} m "
+        "in {} frames; give more --frames or a realistic scenario (city, highway, forest)",
+        worst, sim.scenario().name, sim.path_length(), sim.num_frames());
+}
+
 // Where the frames go: the KITTI layout, or the bag with the labels beside it.
 class FrameSink {
  public:
@@ -79,6 +93,20 @@ class FrameSink {
     bag_->write(c, frame_stamp(k));
     write_labels(dir_, k, c);
   }
+  // The /imu topic, recorded at each sample's stamp.
+  void write_imu(const std::vector<ImuSample>& samples, bool in_g) {
+    if (!bag_) return;
+    const uint32_t topic = bag_->writer().add_topic("/imu", "sensor_msgs/msg/Imu");
+    ImuMsg m;
+    m.frame_id = "imu";
+    for (const ImuSample& s : samples) {
+      m.stamp_ns = std::llround(s.stamp * 1e9);
+      const Eigen::Vector3d a = in_g ? Eigen::Vector3d(s.accel / kStandardGravity) : s.accel;
+      m.angular_velocity = {s.gyro.x(), s.gyro.y(), s.gyro.z()};
+      m.linear_acceleration = {a.x(), a.y(), a.z()};
+      bag_->writer().write(topic, m.stamp_ns, encode_imu(m, bag_->encoding()));
+    }
+  }
   void close() {
     if (bag_) bag_->close();
   }
@@ -96,6 +124,35 @@ const char* time_field_note(PointTimeConvention t) {
     case PointTimeConvention::livox_offset_time: return "offset_time: uint32 ns after the header stamp (Livox)";
     default: return "none";
   }
+}
+
+Json imu_json(const ImuSimConfig& c, const OutputOptions& out) {
+  Json j = Json::object();
+  j["file"] = "imu.txt: stamp gx gy gz (rad/s) ax ay az (m/s^2), IMU frame; imu_bias.txt: the true biases at each stamp";
+  if (out.bag)
+    j["topic"] = std::string("/imu: sensor_msgs/Imu, header stamps as in imu.txt, acceleration in ") +
+                 (out.message == ScanMessage::livox_custom_msg ? "g (Livox driver)" : "m/s^2");
+  j["rate_hz"] = c.rate;
+  j["gravity"] = "9.80665 m/s^2 along -z of the world (poses_world.txt)";
+  j["trajectory"] =
+      "smooth through the IMU poses at the frame stamps: quintic Hermite positions, cubic Hermite rotation "
+      "increments; exact derivatives of it";
+  Json T = Json::array();
+  const Eigen::Matrix<double, 3, 4> m = c.T_lidar_imu.matrix().topRows<3>();
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 4; ++k) T.push_back(m(r, k));
+  j["T_lidar_imu"] = T;
+  j["T_lidar_imu_layout"] = "3x4 row-major [R t]: a point in the IMU frame to the LiDAR frame";
+  j["time_offset_s"] = c.time_offset;
+  j["time_offset"] = "imu stamp = true time + time_offset_s";
+  j["noise"] = c.noise;
+  j["gyro_noise_density"] = c.noise ? c.density.gyro_noise : 0.0;
+  j["accel_noise_density"] = c.noise ? c.density.accel_noise : 0.0;
+  j["gyro_bias_random_walk"] = c.noise ? c.density.gyro_bias_walk : 0.0;
+  j["accel_bias_random_walk"] = c.noise ? c.density.accel_bias_walk : 0.0;
+  j["noise_units"] =
+      "rad/s/sqrt(Hz), m/s^2/sqrt(Hz), rad/s^2/sqrt(Hz), m/s^3/sqrt(Hz); initial biases N(0, 0.002 rad/s), N(0, 0.05 m/s^2)";
+  return j;
 }
 
 void write_metadata(const fs::path& dir, const Simulator& sim, const SimulationConfig& config, const OutputOptions& out,
@@ -150,6 +207,7 @@ void write_metadata(const fs::path& dir, const Simulator& sim, const SimulationC
                             : r.motion_distortion ? time_field_note(out.time) : "none";
     if (livox) j["reflectivity"] = "uint8, the simulated intensity in [0, 1] x 255, rounded";
   }
+  if (out.imu) j["imu"] = imu_json(*out.imu, out);
   write_file_atomic((dir / "scenario.json").string(), [&](std::ostream& out) { out << j.dump() << "\n"; });
 }
 
@@ -228,15 +286,26 @@ size_t write_simulation(const std::string& dir_name, const SimulationConfig& con
     }
     if (!quiet) report_progress(start + count, n, watch.ms() / 1000.0, tty);
   }
+  if (output.imu) {
+    const SimulatedImu imu = simulate_imu(ImuTrajectory(sim.poses(), 0.1, output.imu->T_lidar_imu), *output.imu, config.seed);
+    warn_unrealistic(imu.samples, sim);
+    sink.write_imu(imu.samples, output.message == ScanMessage::livox_custom_msg);
+    write_imu_txt((dir / "imu.txt").string(), imu.samples);
+    write_imu_txt((dir / "imu_bias.txt").string(), imu.bias);
+  }
   sink.close();
   write_metadata(dir, sim, config, output, total);
   if (!quiet) {
     const std::string scans =
         output.bag ? fs::path(simulated_bag_path(dir_name, *output.bag)).filename().string() + " (/points)"
                    : std::string("velodyne/") + (sim.realism().motion_distortion ? ", point_times/" : "");
-    spdlog::info("wrote {} scans ({:.0f} points each on average) of the '{}' scenario to {}: {}{}, poses.txt, "
-                 "poses_world.txt, times.txt, scenario.json", n, static_cast<double>(total) / n, sim.scenario().name,
-                 dir_name, scans, sim.realism().labels ? ", labels/" : "");
+    spdlog::info(
+        "wrote {} scans ({:.0f} points each on average) of the '{}' scenario to {}: {}{}, poses.txt, "
+        "poses_world.txt, times.txt, scenario.json{}",
+        n, static_cast<double>(total) / n, sim.scenario().name, dir_name, scans, sim.realism().labels ? ", labels/" : "",
+        output.imu ? ", imu.txt and imu_bias.txt (IMU at " + std::to_string(int(output.imu->rate)) + " Hz" +
+                         (output.bag ? ", also as the bag's /imu)" : ")")
+                   : "");
   }
   return total;
 }

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "gcmap/io/bag_scans.hpp"
+#include "gcmap/sim/imu.hpp"
 #include "gcmap/sim/simulator.hpp"
 
 namespace gcmap::sim {
@@ -21,6 +22,9 @@ struct OutputOptions {
   // ouster_t, velodyne_time, hesai_timestamp or livox_offset_time.
   PointTimeConvention time = PointTimeConvention::ouster_t;
   Compression compression = Compression::none;  // mcap: zstd, lz4; ros1: bz2, lz4
+  // Also an IMU (sim/imu.hpp): imu.txt and imu_bias.txt in DIR, and a bag's /imu topic
+  // (sensor_msgs/Imu; with livox_custom_msg the acceleration in g, as the Livox driver writes it).
+  std::optional<ImuSimConfig> imu;
 };
 
 // "kitti", "mcap", "db3" or "bag" (ROS 1); Error naming `key` otherwise.

@@ -1,0 +1,90 @@
+#pragma once
+// Factors over NavStates (pose, velocity, IMU biases: graph/imu_preintegration.hpp), each a
+// residual with its Jacobians over the 15-dimensional tangents of the states it touches, whitened
+// so that its error is |r|^2. The pose-only LevenbergMarquardt does not take them yet: a dense LM
+// over a few states (optimize_nav_states) solves them on their own.
+#include <Eigen/Core>
+#include <array>
+#include <memory>
+#include <vector>
+
+#include "gcmap/graph/imu_preintegration.hpp"
+
+namespace gcmap {
+
+using Matrix15d = Eigen::Matrix<double, 15, 15>;
+
+struct NavLinearization {
+  Eigen::VectorXd r;                 // whitened residual
+  std::array<Eigen::MatrixXd, 2> J;  // whitened dr/d(tangent) of keys()[0], keys()[1]
+};
+
+class NavFactor {
+ public:
+  virtual ~NavFactor() = default;
+  virtual int num_keys() const = 0;
+  const std::array<int, 2>& keys() const { return keys_; }
+  // states[k] is the state of keys()[k].
+  virtual NavLinearization linearize(const NavState* const* states) const = 0;
+  double error(const NavState* const* states) const { return linearize(states).r.squaredNorm(); }
+
+ protected:
+  std::array<int, 2> keys_{-1, -1};
+};
+
+// Preintegrated IMU between states i and j (Forster Eq. 45): r = [r_dR, r_dv, r_dp] at the bias of
+// state i, corrected to first order, whitened by the preintegration's covariance. The bias of j is
+// left to a BiasRandomWalkFactor.
+class ImuFactor : public NavFactor {
+ public:
+  ImuFactor(int key_i, int key_j, ImuPreintegration preintegration, const Eigen::Vector3d& gravity = gravity_vector());
+  int num_keys() const override { return 2; }
+  NavLinearization linearize(const NavState* const* states) const override;
+  // The unwhitened residual and its Jacobians over state i's and j's tangents.
+  Vector9d residual(const NavState& i, const NavState& j, Eigen::Matrix<double, 9, 15>* J_i = nullptr,
+                    Eigen::Matrix<double, 9, 15>* J_j = nullptr) const;
+  const ImuPreintegration& preintegration() const { return pre_; }
+
+ private:
+  ImuPreintegration pre_;
+  Eigen::Vector3d gravity_;
+  Matrix9d sqrt_information_;
+};
+
+// The biases of i and j differ by a random walk over dt seconds: r = b_j - b_i with covariance
+// (bias walk density)^2 dt.
+class BiasRandomWalkFactor : public NavFactor {
+ public:
+  BiasRandomWalkFactor(int key_i, int key_j, double dt, const ImuNoise& noise);
+  int num_keys() const override { return 2; }
+  NavLinearization linearize(const NavState* const* states) const override;
+
+ private:
+  Vector6d sqrt_information_;
+};
+
+// A state is near `prior`: r = [log(T_prior^-1 T); v - v_prior; b - b_prior], whitened by the
+// square root of a 15x15 information matrix.
+class NavPriorFactor : public NavFactor {
+ public:
+  NavPriorFactor(int key, const NavState& prior, const Matrix15d& information);
+  int num_keys() const override { return 1; }
+  NavLinearization linearize(const NavState* const* states) const override;
+
+ private:
+  NavState prior_;
+  Matrix15d sqrt_information_;
+};
+
+struct NavOptimizationResult {
+  int iterations = 0;
+  double initial_error = 0.0, final_error = 0.0;
+  bool converged = false;
+};
+
+// Dense Levenberg-Marquardt over states[0..n): for a handful of states (tests, initialization).
+// Throws Error when a factor references a missing state.
+NavOptimizationResult optimize_nav_states(const std::vector<std::unique_ptr<NavFactor>>& factors, std::vector<NavState>& states,
+                                          int max_iterations = 50);
+
+}  // namespace gcmap
