@@ -98,7 +98,7 @@ void add_map(CLI::App& app, Runner& run) {
       std::fprintf(stderr, "%s %zu frames in %.1f s (%.1f frames/s): %zu submaps, %zu global factors; peak memory %.0f MB.\n",
                    r.signal ? "Interrupted: mapped" : "Mapped", r.frames, r.seconds, r.fps, r.submaps, r.factors,
                    peak_rss_bytes() / 1e6);
-      std::fprintf(stderr, "Wrote %s: trajectory.kitti and .tum (optimized poses), odometry.kitti, map.ply%s, graph.json, stats.json%s, config.yaml, session/ (for localize and merge).\n",
+      std::fprintf(stderr, "Wrote %s: trajectory.kitti and .tum (optimized poses), odometry.kitti, map.ply%s, graph.json, stats.json%s, quality.json and report.html (run quality, verdict first), config.yaml, session/ (for localize and merge).\n",
                    opt->output.c_str(), opt->config.output.pcd ? " and map.pcd" : "", r.signal ? " (marked partial)" : "");
       if (!ov->no_render)
         for (const auto& f : viz::write_run_pictures(opt->output, {})) std::fprintf(stderr, "Wrote %s: %s.\n", f.path.c_str(), f.what.c_str());

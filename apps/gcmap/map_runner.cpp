@@ -10,6 +10,7 @@
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/memory.hpp"
+#include "gcmap/core/timer.hpp"
 #include "gcmap/cuda/cuda_backend.hpp"
 #include "gcmap/io/bag_scans.hpp"
 #include "gcmap/io/file.hpp"
@@ -106,7 +107,9 @@ class SignalScope {
 
 void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapRunOptions& o, int signal,
                    const std::vector<std::string>& input_warnings) {
+  Stopwatch clock;
   const QualityReport quality = assess_quality(pipeline);
+  spdlog::info("quality report ({} submap pairs compared) in {:.1f} s:", quality.pairs.size(), clock.ms() / 1e3);
   for (const std::string& line : quality.verdict) spdlog::info("quality: {}", line);
   write_folder_contents_atomic(o.output, [&](const std::string& staging) {
     const fs::path out(staging);

@@ -18,6 +18,8 @@ constexpr double kAxisCosine = 0.8;
 // A degenerate stretch is reported from this many frames; gaps of up to kStretchGap frames join.
 constexpr int kMinStretch = 3, kStretchGap = 2;
 constexpr int kEntropyPoints = 20000;  // per submap: the entropy of a subsample (the cost is per point)
+// m: submap clouds are voxel-downsampled, too sparse for the 0.3 m of a dense map.
+constexpr double kEntropyRadius = 1.0;
 
 double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
@@ -116,7 +118,7 @@ std::vector<SubmapQualityRecord> assess_submaps(const Mapper& m) {
     out[i].first_frame = s.keyframes.front();
     out[i].last_frame = s.keyframes.back();
     out[i].position = (T_out_world * m.submap_pose(s.id)).translation();
-    out[i].entropy = mean_map_entropy(evenly_subsampled(*s.cloud, kEntropyPoints)).mean;
+    out[i].entropy = mean_map_entropy(evenly_subsampled(*s.cloud, kEntropyPoints), kEntropyRadius).mean;
   });
   return out;
 }

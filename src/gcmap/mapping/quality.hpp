@@ -18,7 +18,7 @@ struct QualityThresholds {
   // this many times the median shift of consecutive submaps (the run's own noise), and by at
   // least min_shift m.
   double inconsistent_factor = 4.0;
-  double min_shift = 0.05;
+  double min_shift = 0.02;
   double pair_radius = 20.0;  // m between submap origins: pairs compared
   // A stamp interval over this many times the median one (or not increasing) is an anomaly.
   double stamp_gap_factor = 1.5;

@@ -130,8 +130,8 @@ std::shared_ptr<const GaussianVoxelMap> Odometry::model_at(double resolution) co
   return map;
 }
 
-Eigen::Isometry3d Odometry::estimate(const PointCloud& frame, const Eigen::Isometry3d& guess, Guess kind,
-                                     bool* failed, RegistrationQuality* quality) const {
+Eigen::Isometry3d Odometry::estimate(const PointCloud& frame, const Eigen::Isometry3d& guess, Guess kind, bool* failed,
+                                     RegistrationQuality* quality) const {
   if (failed) *failed = false;
   if (quality) *quality = {};
   if (!model_) return guess;
@@ -183,9 +183,10 @@ Eigen::Isometry3d Odometry::estimate(const PointCloud& frame, const Eigen::Isome
   if (failed) *failed = bad;
   if (quality) {
     *quality = registration_quality(r, frame.size());
-    if (bad) quality->failure = r.num_inliers <= 50           ? OdometryFailure::no_matches
-                                : implausible && stops_short(r) ? OdometryFailure::stops_short
-                                                                : OdometryFailure::far_with_low_overlap;
+    if (bad)
+      quality->failure = r.num_inliers <= 50             ? OdometryFailure::no_matches
+                         : implausible && stops_short(r) ? OdometryFailure::stops_short
+                                                         : OdometryFailure::far_with_low_overlap;
   }
   return bad ? guess : r.T_target_source;
 }
