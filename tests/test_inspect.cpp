@@ -289,7 +289,7 @@ std::string still_scans(const TempDir& dir, int n, BinFields fields = BinFields:
 TEST(MapCli, StatesItsAssumptionsAndWritesThemToStats) {
   TempDir dir;
   const std::string scans = still_scans(dir, 4);
-  const CliRun r = run_gcmap("map " + scans + " -o " + (dir / "out") + " --quiet --no-render");
+  const CliRun r = run_gcmap("map " + scans + " -o " + (dir / "out") + " --no-render");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.err.find("stamps: times file ("), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("elevation correction: none (not the KITTI layout"), std::string::npos) << r.err;

@@ -192,7 +192,10 @@ MapRunResult run_mapping(const MapRunOptions& o) {
   ScanSource& source = *input.source;
   check_output_apart(o.output, input.assumptions);
   check_writable(o.output);
-  for (const std::string& line : input.assumptions.lines()) spdlog::info("{}", line);
+  // --quiet keeps the warnings; stats.json has every line.
+  for (const std::string& line : input.assumptions.lines())
+    if (line.rfind("warning: ", 0) == 0) spdlog::warn("{}", line.substr(9));
+    else if (!o.quiet) spdlog::info("{}", line);
   Trajectory initial;
   if (!o.initial_trajectory.empty()) {
     initial = read_trajectory(o.initial_trajectory);

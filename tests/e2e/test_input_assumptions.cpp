@@ -14,7 +14,7 @@ TEST(InputAssumptionsE2E, Hku1StampsBesideTheScansFolder) {
   GCMAP_REQUIRE_SHARED_DATA("hku1_livox");
   TempDir dir;
   const std::string scans = shared_data() + "/hku1_livox/scans";
-  const CliRun r = run_gcmap("map " + scans + " -o " + (dir / "out") + " --quiet --no-render --max-frames 20");
+  const CliRun r = run_gcmap("map " + scans + " -o " + (dir / "out") + " --no-render --max-frames 20");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.err.find("hku1_livox/times.txt, one stamp per scan"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("elevation correction: none (not the KITTI layout"), std::string::npos) << r.err;
@@ -33,8 +33,8 @@ TEST(InputAssumptionsE2E, MapStatesATimeMistakeOfItsBag) {
                                " --scenario city --sensor vlp16 --frames 20 --seed 5 --realism motion_distortion --format mcap "
                                "--time-field velodyne --time-mistake ms");
   ASSERT_EQ(sim.code, 0) << sim.err;
-  const CliRun r = run_gcmap("map " + (dir / "sim/drive.mcap") + " -o " + (dir / "out") + " --quiet --no-render --no-deskew");
-  EXPECT_NE(r.err.find("warning: first scan: per-point times span"), std::string::npos) << r.err;
+  const CliRun r = run_gcmap("map " + (dir / "sim/drive.mcap") + " -o " + (dir / "out") + " --no-render --no-deskew");
+  EXPECT_NE(r.err.find("[warning] first scan: per-point times span"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("milliseconds where seconds are expected"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("deskewing: off (preprocess.deskew is off"), std::string::npos) << r.err;
   EXPECT_NE(slurp(dir / "out/stats.json").find("milliseconds where seconds"), std::string::npos);
