@@ -81,15 +81,20 @@ void add_map(CLI::App& app, Runner& run) {
   cmd->add_option("--start-time", opt->start_time, "Bags: start this many seconds after the first message");
   cmd->add_option("--duration", opt->duration, "Bags: map this many seconds (0 = to the end)");
   cmd->add_option("-o,--output", opt->output, "Output folder")->required();
+  cmd->add_option("--times", opt->times_file,
+                  "Folders: the scans' stamps, one line per scan (default: times.txt in the sequence folder, in the scans folder or beside it)");
+  auto bin_fields = std::make_shared<std::string>("xyzi");
+  cmd->add_option("--bin-fields", *bin_fields, "Layout of .bin scans: xyzi (KITTI) or xyz")->capture_default_str();
   cmd->add_option("--initial-trajectory", opt->initial_trajectory, "KITTI or TUM poses to use instead of the built-in odometry");
   cmd->add_option("--start", opt->start, "First scan index")->capture_default_str();
   cmd->add_option("--max-frames", opt->max_frames, "Process at most this many scans (0 = all)")->capture_default_str();
   cmd->add_flag("--quiet", opt->quiet, "No progress line");
   ov->add(cmd);
   cmd->footer("Writes trajectory.kitti/.tum, odometry.kitti, map.ply, graph.json, stats.json, config.yaml and session/.");
-  cmd->callback([opt, ov, &run] {
-    run = [opt, ov] {
+  cmd->callback([opt, ov, bin_fields, &run] {
+    run = [opt, ov, bin_fields] {
       const auto threads = limit_threads(ov->threads);
+      opt->bin_fields = parse_bin_fields(*bin_fields);
       opt->config = ov->resolve();
       opt->device = parse_device(ov->device, "--device");
       const MapRunResult r = run_mapping(*opt);
@@ -102,7 +107,8 @@ void add_map(CLI::App& app, Runner& run) {
                    opt->output.c_str(), opt->config.output.pcd ? " and map.pcd" : "", r.signal ? " (marked partial)" : "");
       if (!ov->no_render)
         for (const auto& f : viz::write_run_pictures(opt->output, {})) std::fprintf(stderr, "Wrote %s: %s.\n", f.path.c_str(), f.what.c_str());
-      return r.signal ? 128 + r.signal : 0;
+      if (!r.failure.empty()) std::fprintf(stderr, "gcmap: %s\n", r.failure.c_str());
+      return r.signal ? 128 + r.signal : r.failure.empty() ? 0 : 2;
     };
   });
 }

@@ -13,7 +13,8 @@ void add_simulate(CLI::App& app, Runner& run) {
   auto realism = std::make_shared<std::string>();
   auto ideal = std::make_shared<bool>(false);
   auto format = std::make_shared<std::string>("kitti"), time_field = std::make_shared<std::string>("ouster"),
-       compression = std::make_shared<std::string>("none"), message = std::make_shared<std::string>("pointcloud2");
+       compression = std::make_shared<std::string>("none"), message = std::make_shared<std::string>("pointcloud2"),
+       mistake = std::make_shared<std::string>("none");
   auto* cmd = app.add_subcommand("simulate",
                                  "Generate a synthetic LiDAR sequence with exact ground truth (KITTI layout or a ROS bag)");
   cmd->add_option("-o,--output", *out,
@@ -36,6 +37,11 @@ void add_simulate(CLI::App& app, Runner& run) {
   auto* compression_opt =
       cmd->add_option("--compression", *compression, "Bag chunks: none; mcap: zstd or lz4; bag: bz2 or lz4")
           ->capture_default_str();
+  cmd->add_option("--time-mistake", *mistake,
+                  "Write the per-point times wrong on purpose, as real recordings do (to test inspect and map): ms, ns "
+                  "(units where s are expected), absolute (s on a clock started 1000 s before the drive, where s after the stamp are expected), "
+                  "sweep_end (stamps at the end of each sweep) or zero; other than zero: kitti or --time-field velodyne")
+      ->capture_default_str();
   cmd->add_option("--scenario", opt->scenario,
                   "loop, small, corridor (ideal by default), tunnel, city, highway, forest (realistic by default)")
       ->capture_default_str();
@@ -87,6 +93,7 @@ void add_simulate(CLI::App& app, Runner& run) {
         imu_config->noise = !*imu_noise_free;
         output.imu = *imu_config;
       }
+      output.mistake = sim::parse_time_mistake(*mistake, "--time-mistake");
       Stopwatch w;
       const size_t points = sim::write_simulation(*out, *opt, output, false);
       const std::string bag = output.bag ? ",\"bag\":\"" + sim::simulated_bag_path(*out, *output.bag) + "\"" : "";

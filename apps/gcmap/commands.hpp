@@ -30,6 +30,7 @@ void add_view(CLI::App& app, Runner& run);
 void add_bag_info(CLI::App& app, Runner& run);
 void add_calibrate(CLI::App& app, Runner& run);
 void add_export(CLI::App& app, Runner& run);
+void add_inspect(CLI::App& app, Runner& run);
 
 // "x y z qx qy qz qw" -> pose; throws Error naming the option.
 Eigen::Isometry3d parse_pose_option(const std::string& option, const std::string& text);

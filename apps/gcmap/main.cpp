@@ -62,6 +62,7 @@ int main(int argc, char** argv) {
   gcmap::cli::add_bag_info(app, run);
   gcmap::cli::add_calibrate(app, run);
   gcmap::cli::add_export(app, run);
+  gcmap::cli::add_inspect(app, run);
   app.set_version_flag("--version", "gcmap " GCMAP_VERSION);
   for (CLI::App* sub : app.get_subcommands({})) sub->set_version_flag("--version", "gcmap " GCMAP_VERSION);
 

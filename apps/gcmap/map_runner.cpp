@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <atomic>
 #include <csignal>
 #include <cstdio>
@@ -74,6 +75,19 @@ void check_writable(const std::string& dir) {
   fs::remove(probe, ec);
 }
 
+// Outputs in the input folder (or inside a KITTI input's scans folder) would be read back as scans.
+void check_output_apart(const std::string& output, const InputAssumptions& input) {
+  if (input.layout == InputLayout::bag) return;
+  auto clean = [](const fs::path& p) {
+    fs::path out = fs::weakly_canonical(fs::absolute(p));
+    return out.filename().empty() ? out.parent_path() : out;
+  };
+  const fs::path out = clean(output), in = clean(input.input), scans = clean(input.scans_dir);
+  const auto [end, rest] = std::mismatch(scans.begin(), scans.end(), out.begin(), out.end());
+  if (out == in || end == scans.end())
+    throw Error(output + ": the output folder is the input's scans folder or inside it; choose another -o");
+}
+
 // SIGINT/SIGTERM: the first stops reading scans (the run finishes what it has and writes partial
 // outputs), a second skips the final optimization.
 std::atomic<bool> g_stop{false};
@@ -106,7 +120,7 @@ class SignalScope {
 };
 
 void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapRunOptions& o, int signal,
-                   const std::vector<std::string>& input_warnings) {
+                   const std::vector<std::string>& input_warnings, const Json& assumptions) {
   Stopwatch clock;
   const QualityReport quality = assess_quality(pipeline);
   spdlog::info("quality report ({} submap pairs compared) in {:.1f} s:", quality.pairs.size(), clock.ms() / 1e3);
@@ -135,6 +149,7 @@ void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapR
     Json warnings = Json::array();  // e.g. a truncated bag: mapped up to the damage
     for (const std::string& w : input_warnings) warnings.push_back(w);
     stats["input_warnings"] = warnings;
+    stats["assumptions"] = assumptions;
     stats["host_memory"] = host_memory_json(pipeline);
     if (const auto* gpu = dynamic_cast<const cuda::CudaBackend*>(&pipeline.backend())) stats["device_memory"] = device_memory_json(*gpu, pipeline);
     write_file_atomic((out / "stats.json").string(), [&](std::ostream& s) { s << stats.dump() << "\n"; });
@@ -158,26 +173,38 @@ std::string progress_detail(const MappingPipeline& p) {
 Input open_input(const MapRunOptions& o) {
   if (o.start < 0) throw Error("--start: must be >= 0");
   if (o.max_frames < 0) throw Error("--max-frames: must be >= 0");
+  const PreprocessConfig& pc = o.config.preprocess;
+  const InputOptions io{.times_file = o.times_file, .bin_fields = o.bin_fields, .topic = o.topic,
+                        .kitti_vertical_correction = pc.kitti_vertical_correction, .deskew = pc.deskew,
+                        .deskew_from_azimuth = pc.deskew_from_azimuth, .elevation_calibration = pc.elevation_calibration};
   if (is_bag_path(o.input)) {
     if (o.start_time < 0 || o.duration < 0) throw Error("--start-time and --duration must be >= 0");
+    if (!o.times_file.empty()) throw Error("--times applies to folders of scans, not to the bag " + o.input);
     BagScanOptions bo;
     bo.topic = o.topic;
     bo.start_time = o.start_time;
     if (o.duration > 0) bo.duration = o.duration;
-    return {std::make_unique<BagScanRecords>(o.input, bo, o.start, o.max_frames), false, o.start};
+    InputAssumptions a = decide_input(o.input, io);
+    return {std::make_unique<BagScanRecords>(o.input, bo, o.start, o.max_frames), false, o.start, std::move(a)};
   }
   if (!o.topic.empty() || o.start_time != 0 || o.duration != 0)
     throw Error("--topic, --start-time and --duration apply to bags, not to " + o.input);
-  auto folder = std::make_unique<FolderScanSource>(o.input, o.start, o.max_frames);
+  InputAssumptions a = decide_input(o.input, io);
+  auto folder = std::make_unique<FolderScanSource>(a, o.start, o.max_frames, o.bin_fields);
   const bool kitti = folder->kitti_hdl64();
-  return {std::move(folder), kitti, o.start};
+  return {std::move(folder), kitti, o.start, std::move(a)};
 }
 
 MapRunResult run_mapping(const MapRunOptions& o) {
   o.config.validate();
   Input input = open_input(o);
   ScanSource& source = *input.source;
+  check_output_apart(o.output, input.assumptions);
   check_writable(o.output);
+  // --quiet keeps the warnings; stats.json has every line.
+  for (const std::string& line : input.assumptions.lines())
+    if (line.rfind("warning: ", 0) == 0) spdlog::warn("{}", line.substr(9));
+    else if (!o.quiet) spdlog::info("{}", line);
   Trajectory initial;
   if (!o.initial_trajectory.empty()) {
     initial = read_trajectory(o.initial_trajectory);
@@ -207,7 +234,10 @@ MapRunResult run_mapping(const MapRunOptions& o) {
     }
     pipeline.finish(signal ? std::optional<int>(g_signals > 1 ? 0 : 5) : std::nullopt);
   }
-  write_outputs(pipeline, input.frame_offset, o, signal, source.warnings());
+  const size_t unusable = pipeline.stats().unusable, frames = pipeline.num_frames();
+  if (!signal && unusable == frames)
+    throw Error(o.input + ": none of its " + std::to_string(frames) + " scans could be mapped (unreadable, empty or too few points: see the warnings above); nothing written");
+  write_outputs(pipeline, input.frame_offset, o, signal, source.warnings(), input.assumptions.to_json());
 
   MapRunResult r;
   r.frames = pipeline.num_frames();
@@ -216,6 +246,9 @@ MapRunResult run_mapping(const MapRunOptions& o) {
   r.seconds = pipeline.stats().seconds;
   r.fps = r.seconds > 0 ? r.frames / r.seconds : 0.0;
   r.signal = signal;
+  if (!signal && 2 * unusable > frames)
+    r.failure = o.input + ": " + std::to_string(unusable) + " of its " + std::to_string(frames) +
+                " scans could not be mapped (unreadable, empty or too few points: see the warnings above)";
   return r;
 }
 

@@ -62,33 +62,29 @@ std::vector<T> read_sidecar(const fs::path& path, size_t points) {
 
 }  // namespace
 
-FolderScanSource::FolderScanSource(const std::string& dir, int start, int max_frames) : dir_(dir), start_(start) {
+FolderScanSource::FolderScanSource(const std::string& dir, int start, int max_frames)
+    : FolderScanSource(decide_input(dir, {}), start, max_frames) {}
+
+FolderScanSource::FolderScanSource(const InputAssumptions& input, int start, int max_frames, BinFields bin_fields)
+    : root_(input.root), files_(input.files), stamps_(input.stamps), start_(start), kitti_hdl64_(input.kitti_correction),
+      bin_fields_(bin_fields) {
   if (start < 0) throw Error("--start: must be >= 0");
   if (max_frames < 0) throw Error("--max-frames: must be >= 0");
-  files_ = list_scan_files(dir);
   if (start >= static_cast<int>(files_.size()))
     throw Error("--start " + std::to_string(start) + ": the sequence has " + std::to_string(files_.size()) + " scans");
   files_.erase(files_.begin(), files_.begin() + start);
   if (max_frames > 0 && static_cast<int>(files_.size()) > max_frames) files_.resize(max_frames);
-  std::ifstream in(fs::path(dir) / "times.txt");
-  double t;
-  while (in >> t) stamps_.push_back(t);
-  // Our simulator writes the KITTI layout too, without the HDL-64's elevation error.
-  kitti_hdl64_ = is_kitti_layout(dir) && !fs::exists(fs::path(dir) / "scenario.json");
 }
 
-double FolderScanSource::stamp(size_t i) const {
-  const size_t k = i + start_;
-  return k < stamps_.size() ? stamps_[k] : 0.1 * k;
-}
+double FolderScanSource::stamp(size_t i) const { return stamps_.at(i + start_); }
 
 std::optional<ScanRecord> FolderScanSource::next() {
   if (next_ == files_.size()) return std::nullopt;
   const size_t i = next_++;
   ScanRecord r;
   r.stamp = stamp(i);
-  r.load = [file = files_[i], dir = fs::path(dir_)] {
-    PointCloud c = read_point_cloud(file);
+  r.load = [file = files_[i], dir = fs::path(root_), fields = bin_fields_] {
+    PointCloud c = read_point_cloud(file, fields);
     const std::string stem = fs::path(file).stem().string();
     c.labels = read_sidecar<uint32_t>(dir / "labels" / (stem + ".label"), c.size());
     c.times = read_sidecar<float>(dir / "point_times" / (stem + ".bin"), c.size());

@@ -3,6 +3,7 @@
 #include <vector>
 
 #include "gcmap/core/scan_source.hpp"
+#include "gcmap/io/input_assumptions.hpp"
 
 namespace gcmap {
 
@@ -13,32 +14,34 @@ std::vector<std::string> list_scan_files(const std::string& dir);
 // True when DIR looks like a KITTI sequence folder (has velodyne/).
 bool is_kitti_layout(const std::string& dir);
 
-// A sequence folder as a scan source. Beside the scans it reads, when present: times.txt (one stamp
-// per scan, else 0.1 s apart), labels/NNNNNN.label (SemanticKITTI, into PointCloud::labels) and
-// point_times/NNNNNN.bin (float32 per point, seconds relative to the scan's stamp, which is the
-// start of the sweep; into PointCloud::times). A sidecar whose count does not match is ignored
-// with a warning.
+// A sequence folder as a scan source, as decide_input (input_assumptions.hpp) found it: the
+// scans, their stamps (a times file, or the assumed rate) and, beside them when present,
+// labels/NNNNNN.label (SemanticKITTI, into PointCloud::labels) and point_times/NNNNNN.bin (float32
+// per point, seconds relative to the scan's stamp, which is the start of the sweep; into
+// PointCloud::times). A sidecar whose count does not match is ignored with a warning.
 class FolderScanSource : public ScanSource {
  public:
   // Scans [start, start + max_frames) (max_frames 0: all). Throws Error naming --start when the
   // folder has no scan at start.
   FolderScanSource(const std::string& dir, int start = 0, int max_frames = 0);
+  FolderScanSource(const InputAssumptions& input, int start, int max_frames, BinFields bin_fields = BinFields::xyzi);
   std::optional<ScanRecord> next() override;
   size_t size_hint() const override { return files_.size(); }
 
-  // KITTI's own recordings (a KITTI layout that our simulator did not write).
+  // KITTI's own recordings, by decide_input's evidence.
   bool kitti_hdl64() const { return kitti_hdl64_; }
   int start() const { return start_; }
-  // Stamp of scan i of this source (from times.txt when it has one).
+  // Stamp of scan i of this source.
   double stamp(size_t i) const;
 
  private:
-  std::string dir_;
+  std::string root_;  // where labels/ and point_times/ are
   std::vector<std::string> files_;
   std::vector<double> stamps_;  // of the whole folder
   int start_ = 0;
   size_t next_ = 0;
   bool kitti_hdl64_ = false;
+  BinFields bin_fields_ = BinFields::xyzi;
 };
 
 }  // namespace gcmap

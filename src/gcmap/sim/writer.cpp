@@ -65,10 +65,31 @@ void warn_unrealistic(const std::vector<ImuSample>& samples, const Simulator& si
         worst, sim.scenario().name, sim.path_length(), sim.num_frames());
 }
 
+// The cloud's times and its stamp as a recording with the mistake would hold them.
+double apply_mistake(PointCloud& c, double stamp, TimeMistake m) {
+  for (float& t : c.times) {
+    if (m == TimeMistake::milliseconds) t *= 1e3f;
+    if (m == TimeMistake::nanoseconds) t *= 1e9f;
+    if (m == TimeMistake::absolute) t += static_cast<float>(1000.0 + stamp);  // a clock started 1000 s before the drive
+    if (m == TimeMistake::sweep_end) t -= 0.1f;
+    if (m == TimeMistake::zero) t = 0.f;
+  }
+  return m == TimeMistake::sweep_end ? stamp + 0.1 : stamp;
+}
+
+void check_mistake(const Simulator& sim, const OutputOptions& out) {
+  if (out.mistake == TimeMistake::none) return;
+  if (!sim.realism().motion_distortion) throw Error("--time-mistake needs per-point times: the realism key motion_distortion");
+  const bool float_time = !out.bag || (out.message == ScanMessage::pointcloud2 && out.time == PointTimeConvention::velodyne_time);
+  if (out.mistake != TimeMistake::zero && !float_time)
+    throw Error("--time-mistake: other than zero, it needs a float time: the KITTI layout or --time-field velodyne");
+}
+
 // Where the frames go: the KITTI layout, or the bag with the labels beside it.
 class FrameSink {
  public:
-  FrameSink(const fs::path& dir, const Simulator& sim, const OutputOptions& out) : dir_(dir) {
+  FrameSink(const fs::path& dir, const Simulator& sim, const OutputOptions& out) : dir_(dir), mistake_(out.mistake) {
+    check_mistake(sim, out);
     if (out.message == ScanMessage::livox_custom_msg && !out.bag)
       throw Error(dir.string() + ": Livox CustomMsg scans need a bag (mcap, db3 or ROS 1), not the KITTI layout");
     std::error_code ec;
@@ -89,6 +110,7 @@ class FrameSink {
     bag_.emplace(simulated_bag_path(dir.string(), *out.bag), *out.bag, layout, wo);
   }
   void write(size_t k, const PointCloud& c) {
+    if (mistake_ != TimeMistake::none) return write_with_mistake(k, c);
     if (!bag_) return write_kitti_scan(dir_, k, c);
     bag_->write(c, frame_stamp(k));
     write_labels(dir_, k, c);
@@ -107,12 +129,19 @@ class FrameSink {
       bag_->writer().write(topic, m.stamp_ns, encode_imu(m, bag_->encoding()));
     }
   }
+  void write_with_mistake(size_t k, PointCloud c) {
+    const double stamp = apply_mistake(c, frame_stamp(k), mistake_);
+    if (!bag_) return write_kitti_scan(dir_, k, c);
+    bag_->write(c, stamp);
+    write_labels(dir_, k, c);
+  }
   void close() {
     if (bag_) bag_->close();
   }
 
  private:
   fs::path dir_;
+  TimeMistake mistake_;
   std::optional<ScanBagWriter> bag_;
 };
 
@@ -164,10 +193,11 @@ void write_metadata(const fs::path& dir, const Simulator& sim, const SimulationC
   write_trajectory((dir / "poses.txt").string(), gt);
   gt.poses = sim.poses();
   write_trajectory((dir / "poses_world.txt").string(), gt);
+  const double shift = out.mistake == TimeMistake::sweep_end ? 0.1 : 0.0;  // stamps at the end of each sweep
   write_file_atomic((dir / "times.txt").string(), [&](std::ostream& out) {
     char line[32];
     for (size_t k = 0; k < sim.num_frames(); ++k) {
-      std::snprintf(line, sizeof(line), "%.6e\n", frame_stamp(k));
+      std::snprintf(line, sizeof(line), "%.6e\n", frame_stamp(k) + shift);
       out << line;
     }
   });
@@ -237,6 +267,16 @@ PointTimeConvention parse_time_field(const std::string& text, const std::string&
   if (text == "hesai") return PointTimeConvention::hesai_timestamp;
   if (text == "livox") return PointTimeConvention::livox_offset_time;
   throw Error(key + ": expected ouster, velodyne, hesai or livox, got '" + text + "'");
+}
+
+TimeMistake parse_time_mistake(const std::string& text, const std::string& key) {
+  if (text == "none") return TimeMistake::none;
+  if (text == "ms") return TimeMistake::milliseconds;
+  if (text == "ns") return TimeMistake::nanoseconds;
+  if (text == "absolute") return TimeMistake::absolute;
+  if (text == "sweep_end") return TimeMistake::sweep_end;
+  if (text == "zero") return TimeMistake::zero;
+  throw Error(key + ": expected none, ms, ns, absolute, sweep_end or zero, got '" + text + "'");
 }
 
 ScanMessage parse_scan_message(const std::string& text, const std::string& key) {

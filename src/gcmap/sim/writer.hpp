@@ -13,6 +13,12 @@ namespace gcmap::sim {
 // The message type of a bag's scans.
 enum class ScanMessage { pointcloud2, livox_custom_msg };
 
+// The per-point time mistakes real recordings make, written on purpose so that `gcmap inspect`
+// and `gcmap map` are tested on each: times in ms or ns where s are expected, absolute times (s
+// on a clock started 1000 s before the drive) where times after the stamp are expected, the stamp at the end of the
+// sweep (times.txt or the header; times before it), times all zero.
+enum class TimeMistake { none, milliseconds, nanoseconds, absolute, sweep_end, zero };
+
 struct OutputOptions {
   std::optional<BagFormat> bag;  // none: the KITTI layout
   // livox_custom_msg (bags only): livox_ros_driver/CustomMsg in a ROS 1 bag, livox_ros_driver2/msg/CustomMsg
@@ -25,12 +31,16 @@ struct OutputOptions {
   // Also an IMU (sim/imu.hpp): imu.txt and imu_bias.txt in DIR, and a bag's /imu topic
   // (sensor_msgs/Imu; with livox_custom_msg the acceleration in g, as the Livox driver writes it).
   std::optional<ImuSimConfig> imu;
+  // Needs motion distortion; other than zero, a float time: the KITTI layout's point_times/ or velodyne.
+  TimeMistake mistake = TimeMistake::none;
 };
 
 // "kitti", "mcap", "db3" or "bag" (ROS 1); Error naming `key` otherwise.
 std::optional<BagFormat> parse_output_format(const std::string& text, const std::string& key);
 // "ouster", "velodyne", "hesai" or "livox".
 PointTimeConvention parse_time_field(const std::string& text, const std::string& key);
+// "none", "ms", "ns", "absolute", "sweep_end" or "zero".
+TimeMistake parse_time_mistake(const std::string& text, const std::string& key);
 // "pointcloud2" or "livox".
 ScanMessage parse_scan_message(const std::string& text, const std::string& key);
 // "none", "zstd", "lz4" or "bz2", checked against what `bag` can hold.

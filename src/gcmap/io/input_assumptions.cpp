@@ -1,0 +1,269 @@
+#include "gcmap/io/input_assumptions.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "gcmap/core/error.hpp"
+#include "gcmap/io/bag_scans.hpp"
+#include "gcmap/io/file.hpp"
+#include "gcmap/io/inspect.hpp"
+#include "gcmap/io/sequence.hpp"
+
+namespace gcmap {
+
+namespace fs = std::filesystem;
+
+const char* layout_name(InputLayout layout) {
+  switch (layout) {
+    case InputLayout::kitti: return "kitti";
+    case InputLayout::folder: return "folder";
+    case InputLayout::bag: return "bag";
+  }
+  return "?";
+}
+
+const char* stamp_source_name(StampSource source) {
+  switch (source) {
+    case StampSource::times_file: return "times_file";
+    case StampSource::bag_header: return "bag_header";
+    case StampSource::point_times: return "point_times";
+    case StampSource::assumed_rate: return "assumed_rate";
+  }
+  return "?";
+}
+
+namespace {
+
+// Absolute, normalized, without a trailing separator.
+fs::path clean(const fs::path& p) {
+  fs::path out = fs::absolute(p.empty() ? fs::path(".") : p).lexically_normal();
+  return out.filename().empty() ? out.parent_path() : out;
+}
+
+bool present(const fs::path& p) {
+  std::error_code ec;
+  return fs::exists(p, ec);
+}
+
+// One stamp per line (KITTI's times.txt); Error naming the file and line for anything else.
+std::vector<double> read_stamps(const std::string& path) {
+  std::istringstream in(read_file(path));
+  std::vector<double> stamps;
+  std::string line;
+  for (size_t n = 1; std::getline(in, line); ++n) {
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    std::istringstream ls(line);
+    double t;
+    std::string extra;
+    if (!(ls >> t) || !std::isfinite(t) || (ls >> extra))
+      throw Error(path + ": line " + std::to_string(n) + ": expected one stamp in seconds, got \"" + line + "\"");
+    if (!stamps.empty() && t < stamps.back())
+      throw Error(path + ": line " + std::to_string(n) + ": stamp " + std::to_string(t) + " s is before the previous " +
+                  std::to_string(stamps.back()) + " s (stamps must not go backwards)");
+    stamps.push_back(t);
+  }
+  return stamps;
+}
+
+// The stamps file: --times, else where the KITTI layout keeps it (the sequence folder beside
+// velodyne/), inside the scans folder, beside the scans folder.
+std::string find_times(const InputAssumptions& a, const InputOptions& o, std::vector<std::string>& looked) {
+  if (!o.times_file.empty()) {
+    if (!present(o.times_file)) throw Error(o.times_file + ": --times: no such file");
+    return o.times_file;
+  }
+  std::vector<fs::path> candidates = {fs::path(a.root) / "times.txt", fs::path(a.scans_dir) / "times.txt",
+                                      fs::path(a.scans_dir).parent_path() / "times.txt"};
+  for (const fs::path& p : candidates) {
+    const std::string s = clean(p).string();
+    if (std::find(looked.begin(), looked.end(), s) != looked.end()) continue;
+    looked.push_back(s);
+    if (present(p)) return s;
+  }
+  return {};
+}
+
+void decide_stamps(InputAssumptions& a, const InputOptions& o) {
+  std::vector<std::string> looked;
+  a.times_path = find_times(a, o, looked);
+  if (a.times_path.empty()) {
+    a.stamp_source = StampSource::assumed_rate;
+    for (size_t k = 0; k < a.files.size(); ++k) a.stamps.push_back(k / a.assumed_rate_hz);
+    std::string where;
+    for (const std::string& l : looked) where += (where.empty() ? "" : ", ") + l;
+    a.stamps_text = {"assumed " + std::to_string(int(a.assumed_rate_hz)) + " Hz", "no times.txt (looked for " + where + ")"};
+    a.warnings.push_back("no stamps: scans assumed " + std::to_string(1.0 / a.assumed_rate_hz).substr(0, 3) +
+                         " s apart (no times.txt in " + where + "; name one with --times FILE)");
+    return;
+  }
+  a.stamps = read_stamps(a.times_path);
+  if (a.stamps.size() != a.files.size())
+    throw Error(a.times_path + ": " + std::to_string(a.stamps.size()) + " stamps for " + std::to_string(a.files.size()) +
+                " scans in " + a.scans_dir + " (one line per scan expected; name the right file with --times)");
+  a.stamp_source = StampSource::times_file;
+  a.stamps_text = {"times file", a.times_path + ", one stamp per scan"};
+  size_t duplicates = 0;
+  for (size_t k = 1; k < a.stamps.size(); ++k) duplicates += a.stamps[k] == a.stamps[k - 1];
+  if (duplicates) a.warnings.push_back(a.times_path + ": " + std::to_string(duplicates) + " stamps equal to the previous one");
+}
+
+// KITTI's 0.22 deg correction only for KITTI's own recordings: every piece of evidence must hold.
+void decide_kitti(InputAssumptions& a, const InputOptions& o, const ScanShape* shape) {
+  std::string no;
+  const bool all_bin =
+      std::all_of(a.files.begin(), a.files.end(), [](const std::string& f) { return fs::path(f).extension() == ".bin"; });
+  const bool calib = present(fs::path(a.root) / "calib.txt"), times = present(fs::path(a.root) / "times.txt");
+  if (a.layout == InputLayout::bag) no = "a bag, not KITTI's .bin layout";
+  else if (a.layout != InputLayout::kitti) no = "not the KITTI layout (no velodyne/ folder)";
+  else if (!all_bin) no = "scans are not KITTI's .bin files";
+  else if (!calib && !times) no = "no calib.txt or times.txt beside velodyne/";
+  else if (present(fs::path(a.root) / "scenario.json")) no = "scenario.json: written by gcmap simulate";
+  else if (!shape || shape->rings < 60 || shape->rings > 68)
+    no = "the first scan shows " + (shape ? std::to_string(shape->rings) : std::string("no readable")) +
+         " rings, not the HDL-64's 64";
+  if (!no.empty()) {
+    a.elevation_correction = {"none", no};
+    return;
+  }
+  const std::string evidence = "KITTI layout, .bin scans, " + std::string(calib ? "calib.txt" : "times.txt") +
+                               " beside velodyne/, " + std::to_string(shape->rings) + " rings (" + shape->ring_evidence + ")";
+  a.kitti_correction = o.kitti_vertical_correction;
+  a.elevation_correction = {
+      o.kitti_vertical_correction ? "KITTI HDL-64 0.22 deg" : "none",
+      o.kitti_vertical_correction ? evidence : evidence + ", but preprocess.kitti_vertical_correction is off"};
+}
+
+void decide_deskew(InputAssumptions& a, const InputOptions& o) {
+  if (!o.deskew) a.deskew = {"off", "preprocess.deskew is off (--no-deskew)"};
+  else if (a.point_times) a.deskew = {"on", "per-point times: " + a.point_times_text.value};
+  else if (o.deskew_from_azimuth) a.deskew = {"on", "per-point times derived from the azimuth (preprocess.deskew_from_azimuth)"};
+  else a.deskew = {"off", "the scans carry no per-point times"};
+  a.beam_calibration = o.elevation_calibration.empty() ? Assumed{"none", "preprocess.elevation_calibration is empty"}
+                                                       : Assumed{o.elevation_calibration, "preprocess.elevation_calibration"};
+}
+
+void check_first_times(InputAssumptions& a, const std::vector<float>& times, double offset, double interval) {
+  const PointTimeCheck c = check_point_times(times, offset, interval);
+  if (!c.mistake.empty()) a.warnings.push_back("first scan: " + c.message);
+}
+
+void decide_folder(InputAssumptions& a, const InputOptions& o) {
+  const fs::path in = clean(a.input);
+  // DIR/velodyne given itself: the sequence folder is its parent.
+  const bool inside_velodyne = in.filename() == "velodyne";
+  a.layout = is_kitti_layout(a.input) || inside_velodyne ? InputLayout::kitti : InputLayout::folder;
+  a.root = (inside_velodyne ? in.parent_path() : in).string();
+  a.files = list_scan_files(a.input);
+  a.scans = a.files.size();
+  a.scans_dir = clean(fs::path(a.files.front()).parent_path()).string();
+  const std::string ext = fs::path(a.files.front()).extension().string();
+  a.layout_text = {a.layout == InputLayout::kitti ? "KITTI sequence" : "folder of scans",
+                   std::to_string(a.scans) + " " + ext + " scans in " + a.scans_dir};
+  decide_stamps(a, o);
+  const fs::path point_times = fs::path(a.root) / "point_times", labels = fs::path(a.root) / "labels";
+  a.point_times = present(point_times);
+  a.point_times_text =
+      a.point_times ? Assumed{"seconds after the stamp (sweep start)", point_times.string() + "/NNNNNN.bin, float32 per point"}
+                    : Assumed{"none", "no " + point_times.string() + "/"};
+  a.labels = present(labels) ? Assumed{"SemanticKITTI", labels.string() + "/NNNNNN.label"}
+                             : Assumed{"none", "no " + labels.string() + "/"};
+  std::optional<ScanShape> shape;
+  try {
+    PointCloud first = read_point_cloud(a.files.front(), o.bin_fields);
+    shape = scan_shape(first);
+    const std::string sidecar = (point_times / (fs::path(a.files.front()).stem().string() + ".bin")).string();
+    if (a.point_times && present(sidecar)) {
+      const std::string bytes = read_file(sidecar);
+      std::vector<float> t(bytes.size() / 4);
+      if (!t.empty()) std::memcpy(t.data(), bytes.data(), t.size() * 4);
+      check_first_times(a, t, 0.0, a.stamps.size() > 1 ? a.stamps[1] - a.stamps[0] : 0.1);
+    }
+  } catch (const Error& e) { a.warnings.push_back(std::string("first scan unreadable: ") + e.what()); }
+  decide_kitti(a, o, shape ? &*shape : nullptr);
+}
+
+void decide_bag(InputAssumptions& a, const InputOptions& o) {
+  a.layout = InputLayout::bag;
+  BagScanSource source(a.input, BagScanOptions{.topic = o.topic});
+  a.topic = source.topic();
+  a.scans = source.message_count();
+  const std::string field = describe_cloud_topic(const_cast<BagReader&>(source.bag()), a.topic).time_field;
+  a.layout_text = {"ROS bag", std::to_string(a.scans) + " messages on " + a.topic + " of " + a.input};
+  a.point_times = field != "none";
+  a.point_times_text =
+      a.point_times ? Assumed{field, "the point field of " + a.topic} : Assumed{"none", "no per-point time field on " + a.topic};
+  a.stamp_source = a.point_times ? StampSource::point_times : StampSource::bag_header;
+  a.stamps_text = a.point_times
+                      ? Assumed{"earliest point time", "points carry " + field + "; times re-based to the earliest point"}
+                      : Assumed{"header stamps", "no per-point times on " + a.topic};
+  a.labels = {"none", "bags carry no labels"};
+  BagScan first, second;
+  if (a.point_times && source.next(first)) {
+    const double interval = source.next(second) ? second.header_stamp - first.header_stamp : 0.1;
+    check_first_times(a, first.cloud.times, first.stamp - first.header_stamp, interval);
+  }
+  decide_kitti(a, o, nullptr);
+}
+
+}  // namespace
+
+InputAssumptions decide_input(const std::string& input, const InputOptions& options) {
+  InputAssumptions a;
+  a.input = input;
+  if (is_bag_path(input)) decide_bag(a, options);
+  else decide_folder(a, options);
+  decide_deskew(a, options);
+  return a;
+}
+
+std::vector<std::string> InputAssumptions::lines() const {
+  std::vector<std::string> out;
+  auto add = [&](const char* what, const Assumed& x) {
+    out.push_back(std::string(what) + ": " + x.value + " (" + x.evidence + ")");
+  };
+  add("layout", layout_text);
+  add("stamps", stamps_text);
+  add("per-point times", point_times_text);
+  add("deskewing", deskew);
+  add("elevation correction", elevation_correction);
+  add("beam calibration", beam_calibration);
+  add("labels", labels);
+  for (const std::string& w : warnings) out.push_back("warning: " + w);
+  return out;
+}
+
+Json InputAssumptions::to_json() const {
+  Json j = Json::object();
+  auto add = [&](const char* key, const Assumed& x) {
+    Json e = Json::object();
+    e["value"] = x.value;
+    e["evidence"] = x.evidence;
+    j[key] = e;
+  };
+  j["input"] = input;
+  j["layout_kind"] = layout_name(layout);
+  j["scans"] = scans;
+  j["stamp_source"] = stamp_source_name(stamp_source);
+  if (!times_path.empty()) j["times_file"] = times_path;
+  if (stamp_source == StampSource::assumed_rate) j["assumed_rate_hz"] = assumed_rate_hz;
+  j["kitti_elevation_correction"] = kitti_correction;
+  add("layout", layout_text);
+  add("stamps", stamps_text);
+  add("point_times", point_times_text);
+  add("deskewing", deskew);
+  add("elevation_correction", elevation_correction);
+  add("beam_calibration", beam_calibration);
+  add("labels", labels);
+  Json w = Json::array();
+  for (const std::string& s : warnings) w.push_back(s);
+  j["warnings"] = w;
+  return j;
+}
+
+}  // namespace gcmap
