@@ -104,8 +104,14 @@ class SignalScope {
 
 void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapRunOptions& o, int signal,
                    const std::vector<std::string>& input_warnings) {
+  // The map's assembly and the session can take a while on a long drive: a line as each begins.
+  Progress writing("writing outputs, step", o.config.output.pcd ? 6 : 5, o.quiet);
+  writing.without_rate();
+  size_t step = 0;
+  const auto next = [&](const std::string& what) { writing.step(++step, what); };
   write_folder_contents_atomic(o.output, [&](const std::string& staging) {
     const fs::path out(staging);
+    next("trajectories");
     Trajectory traj;
     traj.poses = pipeline.trajectory();
     traj.stamps = pipeline.stamps();
@@ -116,9 +122,13 @@ void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapR
     Trajectory odom;
     odom.poses = pipeline.odometry();
     write_trajectory((out / "odometry.kitti").string(), odom);
+    next("assembling the map");
     const PointCloud map = pipeline.map(o.config.output.map_resolution);
+    next("map.ply");
     write_ply((out / "map.ply").string(), map);
+    if (o.config.output.pcd) next("map.pcd");
     if (o.config.output.pcd) write_pcd((out / "map.pcd").string(), map);
+    next("graph.json, stats.json, config.yaml");
     const Json graph = graph_json(pipeline, frame_offset);
     write_file_atomic((out / "graph.json").string(), [&](std::ostream& s) { s << graph.dump() << "\n"; });
     Json stats = stats_json(pipeline);
@@ -132,8 +142,10 @@ void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapR
     if (const auto* gpu = dynamic_cast<const cuda::CudaBackend*>(&pipeline.backend())) stats["device_memory"] = device_memory_json(*gpu, pipeline);
     write_file_atomic((out / "stats.json").string(), [&](std::ostream& s) { s << stats.dump() << "\n"; });
     write_file_atomic((out / "config.yaml").string(), [&](std::ostream& s) { s << o.config.to_yaml(); });
+    next("session/");
     write_session((out / "session").string(), pipeline, traj.stamps);
   });
+  writing.finish();
 }
 
 std::string progress_detail(const MappingPipeline& p) {
@@ -142,6 +154,36 @@ std::string progress_detail(const MappingPipeline& p) {
   std::snprintf(buf, sizeof buf, "submaps %zu  factors %zu  last global opt %.0f ms", p.submaps().size(), p.factors().size(),
                 opt.empty() ? 0.0 : opt.back());
   return buf;
+}
+
+std::string fmt_error(double e) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", e);
+  return buf;
+}
+
+// error: of the last iteration; none before the first (or when there is nothing to optimize).
+std::string final_detail(const MappingPipeline& p, std::optional<double> error) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "submaps %zu  factors %zu", p.submaps().size(), p.factors().size());
+  return (error ? "error " + fmt_error(*error) + "  " : std::string()) + buf;
+}
+
+// Closes the last submap and runs the final optimization, a progress line per iteration; the last
+// line gives the counts the summary and stats.json give.
+void finish_with_progress(MappingPipeline& pipeline, std::optional<int> max_iterations, bool quiet) {
+  const int total = max_iterations ? std::min(*max_iterations, pipeline.config().global.final_iterations)
+                                   : pipeline.config().global.final_iterations;
+  Progress progress("final optimization, iteration", static_cast<size_t>(std::max(total, 0)), quiet);
+  progress.without_rate();
+  int done = 0;
+  std::optional<double> error;
+  pipeline.finish(max_iterations, [&](const LMIteration& it) {
+    done = it.iteration;
+    error = it.error;
+    progress.update(static_cast<size_t>(done), final_detail(pipeline, error));
+  });
+  progress.finish(static_cast<size_t>(done), final_detail(pipeline, error));
 }
 
 }  // namespace
@@ -196,7 +238,7 @@ MapRunResult run_mapping(const MapRunOptions& o) {
       spdlog::warn("interrupted after {} frames: closing the open submap, {} final optimization, writing partial outputs",
                    pipeline.num_frames(), g_signals > 1 ? "no" : "a bounded");
     }
-    pipeline.finish(signal ? std::optional<int>(g_signals > 1 ? 0 : 5) : std::nullopt);
+    finish_with_progress(pipeline, signal ? std::optional<int>(g_signals > 1 ? 0 : 5) : std::nullopt, o.quiet);
   }
   write_outputs(pipeline, input.frame_offset, o, signal, source.warnings());
 

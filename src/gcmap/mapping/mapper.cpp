@@ -53,9 +53,9 @@ void Mapper::insert(Submap submap) {
   global_.insert(std::move(submap), &loops_);
 }
 
-void Mapper::finish(std::optional<int> max_final_iterations) {
+void Mapper::finish(std::optional<int> max_final_iterations, const IterationCallback& on_iteration) {
   if (auto s = local_.close()) insert(std::move(*s));
-  global_.optimize_final(max_final_iterations);
+  global_.optimize_final(max_final_iterations, on_iteration);
 }
 
 Eigen::Isometry3d Mapper::keyframe_world(int kf) const {
