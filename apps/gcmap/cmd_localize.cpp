@@ -46,7 +46,9 @@ int localize(const LocalizeOptions& o) {
   if (!o.initial_pose.empty() && o.global_init) throw Error("--initial-pose and --global-init exclude each other");
   if (o.initial_pose.empty() && !o.global_init) throw Error("give --initial-pose \"x y z qx qy qz qw\" or --global-init");
   const std::string folder = fs::exists(fs::path(o.map) / "session") ? (fs::path(o.map) / "session").string() : o.map;
-  Session s = read_session(folder);
+  Progress loading("loading " + folder + ": submap", 0, o.input.quiet);
+  Session s = read_session(folder, loading.callback());
+  loading.finish();
   MappingConfig config = o.config_file.empty() ? s.config : MappingConfig::load(o.config_file);
   config.global.voxel_resolution = s.config.global.voxel_resolution;  // the prior's voxel maps are at it
   Input input = open_input(o.input);

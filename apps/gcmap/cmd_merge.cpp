@@ -11,6 +11,7 @@
 #include "gcmap/session/session.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "gcmap/session/merge.hpp"
+#include "progress.hpp"
 
 namespace gcmap::cli {
 
@@ -106,7 +107,9 @@ int merge(const MergeOptions& o) {
   std::vector<MergeInput> inputs;
   for (const std::string& in : o.inputs) {
     const std::string folder = fs::exists(fs::path(in) / "session") ? (fs::path(in) / "session").string() : in;
-    sessions.push_back(read_session(folder));
+    Progress loading("loading " + folder + ": submap", 0, false);
+    sessions.push_back(read_session(folder, loading.callback()));
+    loading.finish();
     const Session& s = sessions.back();
     inputs.push_back({in, s.submaps, s.T_world_submap, s.factors, s.trajectory});
   }

@@ -3,6 +3,7 @@
 
 #include "commands.hpp"
 #include "gcmap/session/session.hpp"
+#include "progress.hpp"
 
 namespace gcmap::cli {
 
@@ -18,7 +19,9 @@ void add_session(CLI::App& app, Runner& run) {
     run = [dir, json] {
       namespace fs = std::filesystem;
       const std::string folder = fs::exists(fs::path(*dir) / "session" / "manifest.yaml") ? (fs::path(*dir) / "session").string() : *dir;
-      const Session s = read_session(folder);
+      Progress loading("loading session: submap", 0, false);
+      const Session s = read_session(folder, loading.callback());
+      loading.finish();
       const SessionInfo i = session_info(s, folder);
       const Eigen::Vector3d size = i.extent.isEmpty() ? Eigen::Vector3d::Zero() : Eigen::Vector3d(i.extent.sizes());
       if (*json) {

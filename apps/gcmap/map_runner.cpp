@@ -121,12 +121,20 @@ class SignalScope {
 
 void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapRunOptions& o, int signal,
                    const std::vector<std::string>& input_warnings, const Json& assumptions) {
+  // The quality report, the map's assembly and the session can take a while on a long drive: a
+  // line as each begins.
+  Progress writing("writing outputs, step", o.config.output.pcd ? 7 : 6, o.quiet);
+  writing.without_rate();
+  size_t step = 0;
+  const auto next = [&](const std::string& what) { writing.step(++step, what); };
+  next("quality report");
   Stopwatch clock;
   const QualityReport quality = assess_quality(pipeline);
   spdlog::info("quality report ({} submap pairs compared) in {:.1f} s:", quality.pairs.size(), clock.ms() / 1e3);
   for (const std::string& line : quality.verdict) spdlog::info("quality: {}", line);
   write_folder_contents_atomic(o.output, [&](const std::string& staging) {
     const fs::path out(staging);
+    next("trajectories");
     Trajectory traj;
     traj.poses = pipeline.trajectory();
     traj.stamps = pipeline.stamps();
@@ -137,9 +145,13 @@ void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapR
     Trajectory odom;
     odom.poses = pipeline.odometry();
     write_trajectory((out / "odometry.kitti").string(), odom);
+    next("assembling the map");
     const PointCloud map = pipeline.map(o.config.output.map_resolution);
+    next("map.ply");
     write_ply((out / "map.ply").string(), map);
+    if (o.config.output.pcd) next("map.pcd");
     if (o.config.output.pcd) write_pcd((out / "map.pcd").string(), map);
+    next("graph.json, stats.json, config.yaml");
     const Json graph = graph_json(pipeline, frame_offset);
     write_file_atomic((out / "graph.json").string(), [&](std::ostream& s) { s << graph.dump() << "\n"; });
     Json stats = stats_json(pipeline);
@@ -156,8 +168,10 @@ void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapR
     write_file_atomic((out / "quality.json").string(), [&](std::ostream& s) { s << quality_json(quality).dump() << "\n"; });
     write_file_atomic((out / "report.html").string(), [&](std::ostream& s) { s << viz::report_html(quality, pipeline); });
     write_file_atomic((out / "config.yaml").string(), [&](std::ostream& s) { s << o.config.to_yaml(); });
+    next("session/");
     write_session((out / "session").string(), pipeline, traj.stamps);
   });
+  writing.finish();
 }
 
 std::string progress_detail(const MappingPipeline& p) {
@@ -166,6 +180,36 @@ std::string progress_detail(const MappingPipeline& p) {
   std::snprintf(buf, sizeof buf, "submaps %zu  factors %zu  last global opt %.0f ms", p.submaps().size(), p.factors().size(),
                 opt.empty() ? 0.0 : opt.back());
   return buf;
+}
+
+std::string fmt_error(double e) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", e);
+  return buf;
+}
+
+// error: of the last iteration; none before the first (or when there is nothing to optimize).
+std::string final_detail(const MappingPipeline& p, std::optional<double> error) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "submaps %zu  factors %zu", p.submaps().size(), p.factors().size());
+  return (error ? "error " + fmt_error(*error) + "  " : std::string()) + buf;
+}
+
+// Closes the last submap and runs the final optimization, a progress line per iteration; the last
+// line gives the counts the summary and stats.json give.
+void finish_with_progress(MappingPipeline& pipeline, std::optional<int> max_iterations, bool quiet) {
+  const int total = max_iterations ? std::min(*max_iterations, pipeline.config().global.final_iterations)
+                                   : pipeline.config().global.final_iterations;
+  Progress progress("final optimization, iteration", static_cast<size_t>(std::max(total, 0)), quiet);
+  progress.without_rate();
+  int done = 0;
+  std::optional<double> error;
+  pipeline.finish(max_iterations, [&](const LMIteration& it) {
+    done = it.iteration;
+    error = it.error;
+    progress.update(static_cast<size_t>(done), final_detail(pipeline, error));
+  });
+  progress.finish(static_cast<size_t>(done), final_detail(pipeline, error));
 }
 
 }  // namespace
@@ -232,7 +276,7 @@ MapRunResult run_mapping(const MapRunOptions& o) {
       spdlog::warn("interrupted after {} frames: closing the open submap, {} final optimization, writing partial outputs",
                    pipeline.num_frames(), g_signals > 1 ? "no" : "a bounded");
     }
-    pipeline.finish(signal ? std::optional<int>(g_signals > 1 ? 0 : 5) : std::nullopt);
+    finish_with_progress(pipeline, signal ? std::optional<int>(g_signals > 1 ? 0 : 5) : std::nullopt, o.quiet);
   }
   const size_t unusable = pipeline.stats().unusable, frames = pipeline.num_frames();
   if (!signal && unusable == frames)

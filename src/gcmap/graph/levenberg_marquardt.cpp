@@ -334,6 +334,7 @@ LMResult LevenbergMarquardt::optimize(const FactorGraph& graph, Values& values, 
     stats.error = error;
     stats.linearize_ms = result.linearize_ms - lin_ms_before;
     result.history.push_back(stats);
+    if (on_iteration_) on_iteration_(stats);
     if (last) break;
   }
   result.final_error = error;

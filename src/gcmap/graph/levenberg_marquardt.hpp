@@ -1,4 +1,5 @@
 #pragma once
+#include <functional>
 #include <memory>
 #include <optional>
 #include <set>
@@ -35,6 +36,8 @@ struct LMIteration {
   double solve_ms = 0.0;     // factorizations, solves (the symbolic analysis runs beside the first linearization)
 };
 
+using IterationCallback = std::function<void(const LMIteration&)>;
+
 struct LMResult {
   int iterations = 0;
   bool converged = false;
@@ -66,6 +69,8 @@ class LevenbergMarquardt {
   LMResult optimize(const FactorGraph& graph, Values& values, const std::set<int>& fixed = {});
 
   const LMConfig& config() const { return config_; }
+  // Called after each iteration of optimize() (progress of a long optimization for a person).
+  void on_iteration(IterationCallback callback) { on_iteration_ = std::move(callback); }
   // The sparse solver in use (what linear_solver auto chose for the last system).
   LinearSolver active_solver() const { return solver_.active(); }
 
@@ -83,6 +88,7 @@ class LevenbergMarquardt {
   std::shared_ptr<LinearizationBackend> backend_;
   SparseSolver solver_;
   double lambda_;
+  IterationCallback on_iteration_;
 };
 
 }  // namespace gcmap

@@ -177,10 +177,11 @@ int GlobalMapper::connect_overlapping(int id, int first) {
   return static_cast<int>(kept.size());
 }
 
-void GlobalMapper::optimize_final(std::optional<int> max_iterations) {
+void GlobalMapper::optimize_final(std::optional<int> max_iterations, const IterationCallback& on_iteration) {
   const int iterations = max_iterations ? std::min(*max_iterations, config_.final_iterations) : config_.final_iterations;
   if (factors_.empty() || iterations <= 0) return;
   LevenbergMarquardt final_lm(lm_config(config_, iterations), lm_backend());
+  final_lm.on_iteration(on_iteration);
   if (lazy_) lazy_->set_max_relinearizations(0);  // what insertions deferred is caught up here
   Stopwatch w;
   stats_.final_iterations = final_lm.optimize(graph(), values_, {0}).iterations;

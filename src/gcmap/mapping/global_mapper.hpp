@@ -61,8 +61,8 @@ class GlobalMapper {
   // asked for an explicit loop in full mode.
   void insert(Submap submap, LoopDetector* loops);
   // The final optimization, to a 1e-6 relative tolerance, of at most global.final_iterations
-  // (or max_iterations when given; 0 skips it).
-  void optimize_final(std::optional<int> max_iterations = std::nullopt);
+  // (or max_iterations when given; 0 skips it); on_iteration after each of its iterations.
+  void optimize_final(std::optional<int> max_iterations = std::nullopt, const IterationCallback& on_iteration = {});
 
   const std::vector<Submap>& submaps() const { return submaps_; }
   const Eigen::Isometry3d& pose(int id) const { return values_.at(id); }

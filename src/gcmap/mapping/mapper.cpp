@@ -53,9 +53,9 @@ void Mapper::insert(Submap submap) {
   global_.insert(std::move(submap), &loops_);
 }
 
-void Mapper::finish(std::optional<int> max_final_iterations) {
+void Mapper::finish(std::optional<int> max_final_iterations, const IterationCallback& on_iteration) {
   if (auto s = local_.close()) insert(std::move(*s));
-  global_.optimize_final(max_final_iterations);
+  global_.optimize_final(max_final_iterations, on_iteration);
 }
 
 Eigen::Isometry3d Mapper::keyframe_world(int kf) const {
@@ -107,6 +107,10 @@ class SlabAssembler {
   SlabAssembler(const std::vector<Submap>& submaps, std::vector<Eigen::Isometry3d> placements, double resolution)
       : submaps_(submaps), inv_(1.0 / resolution), resolution_(resolution) {
     for (const Eigen::Isometry3d& T : placements) placed_.push_back({T.linear().cast<float>(), T.translation().cast<float>()});
+    // Intensity is mapped where every submap has it (a mean per voxel, as the points).
+    intensities_ = !submaps.empty() && std::all_of(submaps.begin(), submaps.end(), [](const Submap& s) {
+      return s.cloud->has_intensities();
+    });
   }
 
   PointCloud assemble(size_t block_points) {
@@ -122,7 +126,11 @@ class SlabAssembler {
     }
     PointCloud map;
     map.points.reserve(total);
-    for (const PointCloud& slab : slabs) map.points.insert(map.points.end(), slab.points.begin(), slab.points.end());
+    if (intensities_) map.intensities.reserve(total);
+    for (const PointCloud& slab : slabs) {
+      map.points.insert(map.points.end(), slab.points.begin(), slab.points.end());
+      map.intensities.insert(map.intensities.end(), slab.intensities.begin(), slab.intensities.end());
+    }
     return map;
   }
 
@@ -138,7 +146,7 @@ class SlabAssembler {
     for (size_t b = 0; b < points.size(); b += placed.size()) {
       const size_t n = std::min(placed.size(), points.size() - b);
       place(placed_[s], points.data() + b, n, placed.data());
-      for (size_t i = 0; i < n; ++i) fn(placed[i]);
+      for (size_t i = 0; i < n; ++i) fn(placed[i], b + i);
     }
   }
 
@@ -147,14 +155,14 @@ class SlabAssembler {
     lo_ = std::numeric_limits<int64_t>::max();
     int64_t hi = std::numeric_limits<int64_t>::min();
     for (size_t s = 0; s < submaps_.size(); ++s)
-      for_each_point(s, [&](const Eigen::Vector3f& q) {
+      for_each_point(s, [&](const Eigen::Vector3f& q, size_t) {
         lo_ = std::min(lo_, column(q.x()));
         hi = std::max(hi, column(q.x()));
       });
     if (hi < lo_) return false;
     while (((hi - lo_) >> shift_) >= (int64_t{1} << 20)) ++shift_;
     counts_.assign(static_cast<size_t>((hi - lo_) >> shift_) + 1, 0);
-    for (size_t s = 0; s < submaps_.size(); ++s) for_each_point(s, [&](const Eigen::Vector3f& q) { ++counts_[bin(q.x())]; });
+    for (size_t s = 0; s < submaps_.size(); ++s) for_each_point(s, [&](const Eigen::Vector3f& q, size_t) { ++counts_[bin(q.x())]; });
     return true;
   }
 
@@ -162,16 +170,19 @@ class SlabAssembler {
   PointCloud gather(size_t begin, size_t end, size_t n) const {
     std::vector<size_t> offsets(submaps_.size() + 1, 0);
     tbb::parallel_for(size_t{0}, submaps_.size(), [&](size_t s) {
-      for_each_point(s, [&](const Eigen::Vector3f& q) { offsets[s + 1] += bin(q.x()) - begin < end - begin; });
+      for_each_point(s, [&](const Eigen::Vector3f& q, size_t) { offsets[s + 1] += bin(q.x()) - begin < end - begin; });
     });
     for (size_t s = 0; s < submaps_.size(); ++s) offsets[s + 1] += offsets[s];
     if (offsets.back() != n) throw Error("assemble_map: a slab's points were counted differently");
     PointCloud slab;
     slab.points.resize(n);
+    if (intensities_) slab.intensities.resize(n);
     tbb::parallel_for(size_t{0}, submaps_.size(), [&](size_t s) {
       size_t k = offsets[s];
-      for_each_point(s, [&](const Eigen::Vector3f& q) {
-        if (bin(q.x()) - begin < end - begin) slab.points[k++] = q;
+      for_each_point(s, [&](const Eigen::Vector3f& q, size_t i) {
+        if (bin(q.x()) - begin >= end - begin) return;
+        if (intensities_) slab.intensities[k] = submaps_[s].cloud->intensities[i];
+        slab.points[k++] = q;
       });
     });
     return slab;
@@ -182,6 +193,7 @@ class SlabAssembler {
   double inv_, resolution_;
   int64_t lo_ = 0;
   int shift_ = 0;
+  bool intensities_ = false;
   std::vector<size_t> counts_;
 };
 
@@ -189,7 +201,7 @@ class SlabAssembler {
 
 PointCloud Mapper::assemble_map(double resolution, size_t block_points) const {
   if (!(resolution > 0.0)) throw Error("assemble_map: resolution must be positive");
-  // Points only, in the output frame (first frame identity, like the trajectory).
+  // Points (and intensities) in the output frame (first frame identity, like the trajectory).
   const Eigen::Isometry3d T_out_world =
       !frames_.empty() && frames_[0].submap >= 0 ? keyframe_world(0).inverse() : Eigen::Isometry3d::Identity();
   std::vector<Eigen::Isometry3d> placements;

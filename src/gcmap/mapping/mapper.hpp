@@ -31,8 +31,8 @@ class Mapper {
   // has closed keeps its place.
   bool revise_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom);
   // Closes the open submap and runs the final global optimization (at most max_final_iterations
-  // when given; 0 skips it).
-  void finish(std::optional<int> max_final_iterations = std::nullopt);
+  // when given; 0 skips it); on_iteration after each of its iterations.
+  void finish(std::optional<int> max_final_iterations = std::nullopt, const IterationCallback& on_iteration = {});
 
   size_t num_frames() const { return frames_.size(); }
   // World pose of a frame (skipped frames via odometry from their anchor keyframe), expressed so

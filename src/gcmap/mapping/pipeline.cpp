@@ -166,9 +166,9 @@ Frame MappingPipeline::map_frame(Tracked t) {
   return f;
 }
 
-void MappingPipeline::finish(std::optional<int> max_final_iterations) {
+void MappingPipeline::finish(std::optional<int> max_final_iterations, const IterationCallback& on_iteration) {
   if (finished_) return;
-  mapper_.finish(max_final_iterations);
+  mapper_.finish(max_final_iterations, on_iteration);
   finished_ = true;
   seconds_ = clock_.ms() / 1000.0;
 }

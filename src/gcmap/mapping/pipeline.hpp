@@ -84,8 +84,9 @@ class MappingPipeline {
   PreparedScan prepare(PointCloud scan, double stamp) const;
   Frame add_prepared(PreparedScan scan, std::optional<Eigen::Isometry3d> T_odom = std::nullopt);
   // Closes the open submap and runs the final optimization (at most max_final_iterations when
-  // given, 0 skips it: for an interrupted run); add_scan is refused afterwards.
-  void finish(std::optional<int> max_final_iterations = std::nullopt);
+  // given, 0 skips it: for an interrupted run); add_scan is refused afterwards. on_iteration is
+  // called after each iteration of the final optimization.
+  void finish(std::optional<int> max_final_iterations = std::nullopt, const IterationCallback& on_iteration = {});
   bool finished() const { return finished_; }
 
   struct RunOptions {

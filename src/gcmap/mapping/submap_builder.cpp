@@ -1,5 +1,7 @@
 #include "gcmap/mapping/submap_builder.hpp"
 
+#include <algorithm>
+
 #include "gcmap/core/preprocess.hpp"
 #include "gcmap/graph/levenberg_marquardt.hpp"
 #include "gcmap/registration/vgicp.hpp"
@@ -123,20 +125,25 @@ std::optional<Submap> SubmapBuilder::close() {
   return s;
 }
 
-// Keyframe clouds in the submap frame, voxel-averaged means and covariances.
+// Keyframe clouds in the submap frame, voxel-averaged means and covariances, and intensities when
+// every keyframe has them (for the map's outputs; registration reads only points and covariances).
 Submap SubmapBuilder::merge(Submap s) const {
+  const bool intensities = std::all_of(open_.begin(), open_.end(), [](const Keyframe& k) { return k.cloud->has_intensities(); });
   PointCloud merged;
   for (size_t k = 0; k < open_.size(); ++k) {
     const PointCloud c = transformed(*open_[k].cloud, s.T_submap_keyframe[k]);
     merged.points.insert(merged.points.end(), c.points.begin(), c.points.end());
     merged.covs.insert(merged.covs.end(), c.covs.begin(), c.covs.end());
+    if (intensities) merged.intensities.insert(merged.intensities.end(), c.intensities.begin(), c.intensities.end());
   }
   merged = voxel_downsample(merged, config_.submap_downsample);
   merged = evenly_subsampled(std::move(merged), config_.max_submap_points);
   auto voxels = std::make_shared<GaussianVoxelMap>(global_.voxel_resolution);
   voxels->insert(merged);
   voxels->finalize();
-  s.factor_source = std::make_shared<const PointCloud>(evenly_subsampled(merged, global_.factor_source_points));
+  PointCloud source = evenly_subsampled(merged, global_.factor_source_points);
+  std::vector<float>().swap(source.intensities);  // kept for the whole run: only what the factors read
+  s.factor_source = std::make_shared<const PointCloud>(std::move(source));
   s.cloud = std::make_shared<const PointCloud>(std::move(merged));
   s.voxels = voxels;
   return s;

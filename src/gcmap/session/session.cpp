@@ -259,7 +259,7 @@ void write_session(const std::string& dir, const Session& s) {
   });
 }
 
-Session read_session(const std::string& dir) {
+Session read_session(const std::string& dir, const std::function<void(size_t done, size_t total)>& progress) {
   const fs::path root(dir);
   std::error_code ec;
   if (!fs::is_directory(root, ec)) throw Error(dir + ": no session folder");
@@ -293,7 +293,10 @@ Session read_session(const std::string& dir) {
   for (const SessionFactor& f : s.factors)
     if (f.source < 0 || f.target < 0 || static_cast<size_t>(std::max(f.source, f.target)) >= count)
       throw Error((root / "manifest.yaml").string() + ": a factor names a submap that does not exist");
-  for (Submap& sm : s.submaps) rebuild(sm, s.config);
+  for (size_t k = 0; k < s.submaps.size(); ++k) {
+    rebuild(s.submaps[k], s.config);
+    if (progress) progress(k + 1, s.submaps.size());
+  }
   return s;
 }
 

@@ -13,6 +13,7 @@
 //                  point, f32[6] per point (covariance xx xy xz yy yz zz)
 // The folder is written beside the old one and swapped with it in one rename (RENAME_EXCHANGE;
 // elsewhere two renames): a crash leaves the old or the new.
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -41,8 +42,9 @@ Session make_session(const MappingPipeline& pipeline, const std::vector<double>&
 // Writes DIR (e.g. OUT/session); version and created_by are written as this gcmap's.
 void write_session(const std::string& dir, const Session& session);
 void write_session(const std::string& dir, const MappingPipeline& pipeline, const std::vector<double>& stamps);
-// Throws Error naming the file for anything missing, truncated or of a newer version.
-Session read_session(const std::string& dir);
+// Throws Error naming the file for anything missing, truncated or of a newer version. progress(done,
+// total): submaps made ready (voxel maps rebuilt), for a person.
+Session read_session(const std::string& dir, const std::function<void(size_t done, size_t total)>& progress = {});
 
 struct SessionInfo {
   int version = 0;
