@@ -16,14 +16,11 @@ class Progress {
   // Leaves out the rate and ETA: for items of unequal length (steps; iterations up to a maximum
   // that is seldom reached).
   void without_rate() { rate_ = false; }
-  // For work whose size is known only once it starts.
-  void set_total(size_t total) { total_ = total; }
-  // update() as a callback of (done, total).
+  // update() as a callback of (done, total). The total goes in the detail, not in the count: the
+  // last item then forces no line, so a quick load stays silent in a log (where a failure after it
+  // must remain the only line).
   std::function<void(size_t, size_t)> callback() {
-    return [this](size_t done, size_t total) {
-      set_total(total);
-      update(done);
-    };
+    return [this](size_t done, size_t total) { update(done, "(of " + std::to_string(total) + ")"); };
   }
   // done items so far; detail is appended to the line.
   void update(size_t done, const std::string& detail = {});
