@@ -38,8 +38,7 @@ double file_read_mb_s(const std::string& path, uint64_t bytes) {
   Stopwatch w;
   std::ifstream in(path, std::ios::binary);
   std::vector<char> buf(1 << 20);
-  while (in.read(buf.data(), std::streamsize(buf.size())) || in.gcount() > 0) {
-  }
+  while (in.read(buf.data(), std::streamsize(buf.size())) || in.gcount() > 0) {}
   return double(bytes) / 1e6 / (w.lap_ms() * 1e-3);
 }
 
@@ -73,16 +72,19 @@ int main(int argc, char** argv) {
     BagFormat format;
     Compression compression;
   };
-  const Case cases[] = {{"mcap", BagFormat::mcap, Compression::none}, {"mcap-zstd", BagFormat::mcap, Compression::zstd},
-                        {"mcap-lz4", BagFormat::mcap, Compression::lz4},  {"ros1", BagFormat::ros1, Compression::none},
-                        {"ros1-lz4", BagFormat::ros1, Compression::lz4},  {"ros1-bz2", BagFormat::ros1, Compression::bz2},
+  const Case cases[] = {{"mcap", BagFormat::mcap, Compression::none},    {"mcap-zstd", BagFormat::mcap, Compression::zstd},
+                        {"mcap-lz4", BagFormat::mcap, Compression::lz4}, {"ros1", BagFormat::ros1, Compression::none},
+                        {"ros1-lz4", BagFormat::ros1, Compression::lz4}, {"ros1-bz2", BagFormat::ros1, Compression::bz2},
                         {"db3", BagFormat::db3, Compression::none}};
   std::printf("%-10s %9s %9s %12s %12s %10s %12s %10s %10s\n", "format", "file MB", "write s", "raw MB/s", "scans MB/s",
               "scans/s", "file MB/s", "rss0 MB", "read MB");
   for (const Case& c : cases) {
     if (argc > 3 && std::find_if(argv + 3, argv + argc, [&](const char* a) { return std::string(a) == c.name; }) == argv + argc)
       continue;
-    const std::string path = (dir / (std::string(c.name) + (c.format == BagFormat::db3 ? "" : c.format == BagFormat::mcap ? ".mcap" : ".bag"))).string();
+    const std::string path = (dir / (std::string(c.name) + (c.format == BagFormat::db3    ? ""
+                                                            : c.format == BagFormat::mcap ? ".mcap"
+                                                                                          : ".bag")))
+                                 .string();
     BagWriterOptions o;
     o.compression = c.compression;
     o.chunk_bytes = 4 << 20;
@@ -109,9 +111,9 @@ int main(int argc, char** argv) {
     size_t n = 0;
     for (BagScan s; src.next(s);) n += s.cloud.size() > 0;
     const double scan_s = w.lap_ms() * 1e-3, read_rss = peak_rss_mb();
-    std::printf("%-10s %9.1f %9.2f %12.0f %12.0f %10.1f %12.0f %10.0f %10.0f\n", c.name, bytes / 1e6, write_s, bytes / 1e6 / raw_s,
-                bytes / 1e6 / scan_s, n / scan_s, file_read_mb_s(c.format == BagFormat::db3 ? path + "/" + c.name + "_0.db3" : path, bytes),
-                rss0, read_rss);
+    std::printf("%-10s %9.1f %9.2f %12.0f %12.0f %10.1f %12.0f %10.0f %10.0f\n", c.name, bytes / 1e6, write_s,
+                bytes / 1e6 / raw_s, bytes / 1e6 / scan_s, n / scan_s,
+                file_read_mb_s(c.format == BagFormat::db3 ? path + "/" + c.name + "_0.db3" : path, bytes), rss0, read_rss);
     std::fflush(stdout);
     fs::remove_all(path);
   }

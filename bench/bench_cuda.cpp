@@ -32,9 +32,11 @@ void bench_graphs(const bench::Kitti07& data, const std::shared_ptr<cuda::CudaBa
       CpuBackend cpu;
       c = bench::time_backend(cpu, graph, values, num_factors >= 1000 ? 1 : 3);
     }
-    std::printf("factors=%4d  GPU linearize %.2f ms (%.2f G point evaluations/s), trial %.2f ms | CPU 2 threads linearize %.1f ms, trial %.1f ms | speed-up %.0fx\n",
-                num_factors, g.linearize_ms, evaluations / (g.linearize_ms / 1000.0) / 1e9, g.trial_ms, c.linearize_ms, c.trial_ms,
-                c.linearize_ms / g.linearize_ms);
+    std::printf(
+        "factors=%4d  GPU linearize %.2f ms (%.2f G point evaluations/s), trial %.2f ms | CPU 2 threads linearize %.1f ms, trial "
+        "%.1f ms | speed-up %.0fx\n",
+        num_factors, g.linearize_ms, evaluations / (g.linearize_ms / 1000.0) / 1e9, g.trial_ms, c.linearize_ms, c.trial_ms,
+        c.linearize_ms / g.linearize_ms);
     // A full LM run on the GPU from poses off by ~0.1 m / 0.3 deg (steps get accepted, as in mapping),
     // 5 iterations, no early stop; iteration 1 includes the symbolic analysis.
     LMConfig config;
@@ -45,9 +47,10 @@ void bench_graphs(const bench::Kitti07& data, const std::shared_ptr<cuda::CudaBa
     const LMResult r = LevenbergMarquardt(config, gpu).optimize(graph, vals, {0});
     std::printf("              LM on the GPU, ms per iteration (trials): total = linearize+evaluate + assemble + solve\n");
     for (const LMIteration& it : r.history)
-      std::printf("                %d: %.2f (%d) = %.2f + %.2f + %.2f\n", it.iteration, it.linearize_ms + it.assemble_ms + it.solve_ms,
-                  it.trials, it.linearize_ms, it.assemble_ms, it.solve_ms);
-    std::printf("              mean %.2f ms/iteration over %d (whole optimize() call)\n", r.total_ms / r.iterations, r.iterations);
+      std::printf("                %d: %.2f (%d) = %.2f + %.2f + %.2f\n", it.iteration,
+                  it.linearize_ms + it.assemble_ms + it.solve_ms, it.trials, it.linearize_ms, it.assemble_ms, it.solve_ms);
+    std::printf("              mean %.2f ms/iteration over %d (whole optimize() call)\n", r.total_ms / r.iterations,
+                r.iterations);
   }
 }
 
@@ -67,8 +70,11 @@ void bench_registration(const bench::Kitti07& data, cuda::CudaBackend& gpu) {
   w.lap_ms();
   const RegistrationResult c = cpu.align(*nodes[1].cloud, nodes[0].voxels, guess, config);
   const double cpu_ms = w.ms();
-  std::printf("registration (%zu points, %d iterations): GPU %.2f ms (source upload included) | CPU 2 threads %.1f ms | results %.2g m apart\n",
-              nodes[1].cloud->size(), g.iterations, gpu_ms, cpu_ms, (g.T_target_source.translation() - c.T_target_source.translation()).norm());
+  std::printf(
+      "registration (%zu points, %d iterations): GPU %.2f ms (source upload included) | CPU 2 threads %.1f ms | results %.2g m "
+      "apart\n",
+      nodes[1].cloud->size(), g.iterations, gpu_ms, cpu_ms,
+      (g.T_target_source.translation() - c.T_target_source.translation()).norm());
 }
 
 // Overlap of one source against many targets in one launch.
@@ -86,8 +92,8 @@ void bench_overlaps(const bench::Kitti07& data, cuda::CudaBackend& gpu) {
     Stopwatch w;
     for (int r = 0; r < 20; ++r) gpu.overlaps(nodes[0].cloud, targets, T, out);
     const double ms = w.ms() / 20;
-    std::printf("overlap: 1 source (%zu points) x %d targets: %.3f ms per launch, %.4f ms per pair\n", nodes[0].cloud->size(), num_targets, ms,
-                ms / num_targets);
+    std::printf("overlap: 1 source (%zu points) x %d targets: %.3f ms per launch, %.4f ms per pair\n", nodes[0].cloud->size(),
+                num_targets, ms, ms / num_targets);
   }
 }
 
@@ -114,8 +120,9 @@ void bench_covariances(const bench::Kitti07& data, cuda::CudaBackend& gpu) {
   w.lap_ms();
   estimate_covariances(on_cpu, config);
   const double cpu_ms = w.ms();
-  std::printf("covariances (%zu points, k 10): GPU %.2f ms alone, %.2f ms per scan with 4 threads at once | CPU 2 threads %.1f ms\n",
-              scan.size(), alone_ms, together_ms, cpu_ms);
+  std::printf(
+      "covariances (%zu points, k 10): GPU %.2f ms alone, %.2f ms per scan with 4 threads at once | CPU 2 threads %.1f ms\n",
+      scan.size(), alone_ms, together_ms, cpu_ms);
 }
 
 }  // namespace
@@ -138,8 +145,10 @@ int main() {
   bench_overlaps(*data, *gpu);
   bench_covariances(*data, *gpu);
   const cuda::DeviceMemory m = gpu->memory();
-  std::printf("device memory: %zu clouds, %zu points, %.1f bytes/point; %zu maps, %zu voxels in %zu slots, %.1f bytes/voxel (table included); batch buffers %.1f MB\n",
-              m.num_clouds, m.num_points, static_cast<double>(m.cloud_bytes) / m.num_points, m.num_maps, m.num_voxels, m.num_slots,
-              static_cast<double>(m.map_bytes) / m.num_voxels, m.batch_bytes / 1e6);
+  std::printf(
+      "device memory: %zu clouds, %zu points, %.1f bytes/point; %zu maps, %zu voxels in %zu slots, %.1f bytes/voxel (table "
+      "included); batch buffers %.1f MB\n",
+      m.num_clouds, m.num_points, static_cast<double>(m.cloud_bytes) / m.num_points, m.num_maps, m.num_voxels, m.num_slots,
+      static_cast<double>(m.map_bytes) / m.num_voxels, m.batch_bytes / 1e6);
   return 0;
 }

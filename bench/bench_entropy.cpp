@@ -27,8 +27,8 @@ int main(int argc, char** argv) {
     Stopwatch sw;
     const MapEntropy e = mean_map_entropy(map);
     const double s = sw.ms() / 1000.0;
-    std::printf("threads=%d  %.2f s  %.2f M points/s  mme=%.4f std=%.4f used=%zu skipped=%zu\n", threads, s,
-                map.size() / s / 1e6, e.mean, e.stddev, e.num_points, e.num_skipped);
+    std::printf("threads=%d  %.2f s  %.2f M points/s  mme=%.4f std=%.4f used=%zu skipped=%zu\n", threads, s, map.size() / s / 1e6,
+                e.mean, e.stddev, e.num_points, e.num_skipped);
     if (map.size() > 3'000'000) break;  // one thread on the full map takes too long to be worth it
   }
   return 0;

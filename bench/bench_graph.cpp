@@ -100,9 +100,8 @@ void print_solvers(const char* label, int poses, size_t factors, const Eigen::Sp
     return;
   }
   const SolveTiming c = time_solver(LinearSolver::cholmod, A, repeats);
-  std::printf(" %8.2f %8.2f %8.3f    | %.2f / %.2f / %.2f  (residuals %.0e, %.0e)\n", c.analyse_ms, c.factorize_ms,
-              c.solve_ms, c.analyse_ms / e.analyse_ms, c.factorize_ms / e.factorize_ms, c.solve_ms / e.solve_ms, e.residual,
-              c.residual);
+  std::printf(" %8.2f %8.2f %8.3f    | %.2f / %.2f / %.2f  (residuals %.0e, %.0e)\n", c.analyse_ms, c.factorize_ms, c.solve_ms,
+              c.analyse_ms / e.analyse_ms, c.factorize_ms / e.factorize_ms, c.solve_ms / e.solve_ms, e.residual, c.residual);
 }
 
 // Synthetic graphs (4 sequential overlaps, a route repeating every 100 submaps), then the factor
@@ -126,7 +125,8 @@ void bench_solvers(std::span<char*> graph_jsons) {
     std::vector<std::pair<int, int>> pairs;
     for (const viz::GraphEdge& e : run.edges) pairs.emplace_back(e.source, e.target);
     const int poses = static_cast<int>(run.nodes.size());
-    print_solvers(std::filesystem::path(path).parent_path().filename().c_str(), poses, pairs.size(), mapping_system(poses, pairs));
+    print_solvers(std::filesystem::path(path).parent_path().filename().c_str(), poses, pairs.size(),
+                  mapping_system(poses, pairs));
   }
 }
 
@@ -138,9 +138,10 @@ void print_distinct(const bench::Kitti07& data, int num_factors, double points, 
   data.make_graph(num_factors, graph, values, true);
   CpuBackend backend;
   const bench::Timing t = bench::time_backend(backend, graph, values, 1);
-  std::printf("  a copy of the clouds per variable: linearization %.1f M points/s (%.1f ms, %.2fx the shared clouds'"
-              " time)  trial evaluation %.1f M points/s\n",
-              points / t.linearize_ms / 1e3, t.linearize_ms, t.linearize_ms / shared_ms, points / t.trial_ms / 1e3);
+  std::printf(
+      "  a copy of the clouds per variable: linearization %.1f M points/s (%.1f ms, %.2fx the shared clouds'"
+      " time)  trial evaluation %.1f M points/s\n",
+      points / t.linearize_ms / 1e3, t.linearize_ms, t.linearize_ms / shared_ms, points / t.trial_ms / 1e3);
 }
 
 // Trial errors with the voxels kept from the linearization (TrialVoxels::kept, as in-submap factors

@@ -55,8 +55,7 @@ int main() {
     }
     const double per = 1.0 / pairs;
     std::printf("threads=%d  ms/pair: preprocess %.1f  voxelmap %.1f  align %.1f  total %.1f  (%.1f LM iterations/pair)\n",
-                threads, t_pre / 16.0, t_vox * per, t_align * per, t_pre / 16.0 + (t_vox + t_align) * per,
-                iterations * per);
+                threads, t_pre / 16.0, t_vox * per, t_align * per, t_pre / 16.0 + (t_vox + t_align) * per, iterations * per);
 
     // Linearization throughput on one pair.
     PointCloud a = voxel_downsample(raw[0], 0.25), b = voxel_downsample(raw[1], 0.25);
@@ -70,8 +69,8 @@ int main() {
     double sink = 0;
     for (int r = 0; r < reps; ++r) sink += linearize_vgicp(b, voxels, T).error;
     const double s = w.ms() / 1000.0;
-    std::printf("threads=%d  linearization: %zu points x %d in %.1f ms -> %.1f M point evaluations/s (checksum %.3g)\n",
-                threads, b.size(), reps, s * 1000, b.size() * reps / s / 1e6, sink);
+    std::printf("threads=%d  linearization: %zu points x %d in %.1f ms -> %.1f M point evaluations/s (checksum %.3g)\n", threads,
+                b.size(), reps, s * 1000, b.size() * reps / s / 1e6, sink);
   }
   return 0;
 }

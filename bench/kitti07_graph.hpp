@@ -26,7 +26,8 @@ struct Kitti07 {
     k.reference = read_trajectory(dir + "/graph.txt");
     size_t total = 0;
     for (int c = 0; c < 5; ++c) {
-      k.nodes.push_back(make_scan_node(read_point_cloud(dir + "/00000" + std::to_string(c) + "/points.bin", BinFields::xyz), 1.0));
+      k.nodes.push_back(
+          make_scan_node(read_point_cloud(dir + "/00000" + std::to_string(c) + "/points.bin", BinFields::xyz), 1.0));
       total += k.nodes.back().cloud->size();
     }
     k.points_per_cloud = total / 5;

@@ -68,7 +68,8 @@ inline void write_bag_seeds(const std::string& corpus) {
   for (int kind = 0; kind < 4; ++kind) {
     CloudLayout layout;
     layout.time = kind & 1 ? C::livox_custom_msg : C::ouster_t;
-    const std::string msg = encode_scan(seed_scan(6, 0.01f), 1.5, layout, kind & 2 ? MessageEncoding::cdr : MessageEncoding::ros1);
+    const std::string msg =
+        encode_scan(seed_scan(6, 0.01f), 1.5, layout, kind & 2 ? MessageEncoding::cdr : MessageEncoding::ros1);
     write_file_atomic((dir / ("msg" + std::to_string(kind))).string(), [&](std::ostream& o) { o << char(kind) << msg; });
   }
 }

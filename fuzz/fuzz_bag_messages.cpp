@@ -12,7 +12,6 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
     gcmap::fuzz::check_scan(
         gcmap::decode_scan(topic, std::string_view(reinterpret_cast<const char*>(data) + 1, size - 1), "fuzz message"));
-  } catch (const gcmap::Error&) {
-  }
+  } catch (const gcmap::Error&) {}
   return 0;
 }

@@ -32,12 +32,10 @@ inline void read_bag_bytes(BagFormat format, const uint8_t* data, size_t size) {
         if (!is_pointcloud2_type(topic.type) && !is_livox_type(topic.type)) continue;
         try {
           check_scan(decode_scan(topic, m.data, "fuzz message"));
-        } catch (const Error&) {
-        }
+        } catch (const Error&) {}
       }
     }
-  } catch (const Error&) {
-  }
+  } catch (const Error&) {}
 }
 
 }  // namespace gcmap::fuzz

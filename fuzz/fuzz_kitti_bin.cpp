@@ -10,8 +10,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       gcmap::PointCloud cloud = gcmap::parse_bin(gcmap::fuzz::bytes(data, size), fields, "fuzz.bin");
       gcmap::remove_non_finite(cloud);
       gcmap::fuzz::check_cloud(cloud);
-    } catch (const gcmap::Error&) {
-    }
+    } catch (const gcmap::Error&) {}
   }
   return 0;
 }

@@ -11,7 +11,6 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
     const auto labels = gcmap::parse_labels(body, expected, "fuzz.label");
     if (labels.size() != expected) std::abort();
-  } catch (const gcmap::Error&) {
-  }
+  } catch (const gcmap::Error&) {}
   return 0;
 }

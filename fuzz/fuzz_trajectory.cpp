@@ -11,11 +11,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const gcmap::Trajectory traj = gcmap::parse_trajectory(text, "fuzz.txt");
     for (const auto& T : traj.poses)
       if (!T.matrix().allFinite()) std::abort();  // the reader promises finite poses
-  } catch (const gcmap::Error&) {
-  }
+  } catch (const gcmap::Error&) {}
   try {
     if (!gcmap::parse_kitti_calib_tr(text, "calib.txt").matrix().allFinite()) std::abort();
-  } catch (const gcmap::Error&) {
-  }
+  } catch (const gcmap::Error&) {}
   return 0;
 }

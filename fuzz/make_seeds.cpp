@@ -23,7 +23,9 @@ namespace {
 void write_bytes(const fs::path& path, const std::string& bytes) { std::ofstream(path, std::ios::binary) << bytes; }
 
 template <typename T>
-std::string raw(const T* v, size_t n) { return std::string(reinterpret_cast<const char*>(v), n * sizeof(T)); }
+std::string raw(const T* v, size_t n) {
+  return std::string(reinterpret_cast<const char*>(v), n * sizeof(T));
+}
 
 PointCloud cloud(bool with_intensity) {
   PointCloud c;
@@ -54,7 +56,8 @@ void pcd_seeds(const fs::path& dir) {
   const uint32_t sizes[2] = {static_cast<uint32_t>(lzf.size()), static_cast<uint32_t>(payload.size())};
   write_bytes(dir / "compressed.pcd",
               "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\nPOINTS 2\n"
-              "DATA binary_compressed\n" + raw(sizes, 2) + lzf);
+              "DATA binary_compressed\n" +
+                  raw(sizes, 2) + lzf);
 }
 
 void ply_seeds(const fs::path& dir) {
@@ -72,7 +75,8 @@ void ply_seeds(const fs::path& dir) {
   }
   write_bytes(dir / "binary_be.ply",
               "ply\nformat binary_big_endian 1.0\nelement camera 1\nproperty short id\nelement vertex 2\n"
-              "property float x\nproperty float y\nproperty float z\nend_header\n\x01\x02" + body);
+              "property float x\nproperty float y\nproperty float z\nend_header\n\x01\x02" +
+                  body);
 }
 
 void trajectory_seeds(const fs::path& dir) {
@@ -99,7 +103,8 @@ void label_seeds(const fs::path& dir) {
 
 void config_seeds(const fs::path& dir) {
   write_bytes(dir / "default.yaml", MappingConfig{}.to_yaml());
-  write_bytes(dir / "partial.yaml", "# comment\nglobal:\n  mode: sliding-window\n  window: 3\nloop: {enabled: false, rings: 10}\n");
+  write_bytes(dir / "partial.yaml",
+              "# comment\nglobal:\n  mode: sliding-window\n  window: 3\nloop: {enabled: false, rings: 10}\n");
 }
 
 }  // namespace
@@ -111,7 +116,7 @@ int main(int argc, char** argv) {
   }
   const fs::path root = argv[1];
   const std::pair<const char*, void (*)(const fs::path&)> targets[] = {
-      {"fuzz_kitti_bin", bin_seeds},        {"fuzz_pcd", pcd_seeds},       {"fuzz_ply", ply_seeds},
+      {"fuzz_kitti_bin", bin_seeds},         {"fuzz_pcd", pcd_seeds},      {"fuzz_ply", ply_seeds},
       {"fuzz_trajectory", trajectory_seeds}, {"fuzz_labels", label_seeds}, {"fuzz_config", config_seeds}};
   for (const auto& [name, make] : targets) {
     fs::create_directories(root / name);

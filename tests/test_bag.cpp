@@ -143,9 +143,7 @@ void expect_error(const std::function<void()>& f, const std::string& part) {
   try {
     f();
     ADD_FAILURE() << "no error; expected one containing '" << part << "'";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
-  }
+  } catch (const Error& e) { EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what(); }
 }
 
 TEST(Bag, TopicSelection) {

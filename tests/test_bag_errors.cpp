@@ -76,8 +76,7 @@ TEST(BagErrors, TruncatedFilesReadAsFarAsIntact) {
           n += msgs.size();
         }
         partial += n > 0;
-      } catch (const Error&) {
-      }
+      } catch (const Error&) {}
     }
     // MCAP and ROS 1 recover the complete chunks of a cut file; sqlite refuses a cut database.
     if (c.format != BagFormat::db3) EXPECT_GT(partial, 20);
@@ -97,8 +96,7 @@ TEST(BagErrors, RandomCorruptionNeverCrashes) {
       for (int k = 0; k < 1 + trial % 4; ++k) bad[rng() % bad.size()] = char(rng());
       try {
         read_all(c.format, bad);
-      } catch (const Error&) {
-      }
+      } catch (const Error&) {}
     }
   }
 }
@@ -134,8 +132,9 @@ TEST(BagErrors, UnknownCompressionIsNamed) {
     Compression compression;
     std::string from, to, name;
   };
-  for (const Case& k : {Case{BagFormat::mcap, Compression::zstd, std::string("\4\0\0\0zstd", 8), std::string("\4\0\0\0zzzz", 8), "zzzz"},
-                        Case{BagFormat::ros1, Compression::lz4, "compression=lz4", "compression=xz4", "xz4"}}) {
+  for (const Case& k :
+       {Case{BagFormat::mcap, Compression::zstd, std::string("\4\0\0\0zstd", 8), std::string("\4\0\0\0zzzz", 8), "zzzz"},
+        Case{BagFormat::ros1, Compression::lz4, "compression=lz4", "compression=xz4", "xz4"}}) {
     const std::string path = dir / (k.format == BagFormat::mcap ? "c.mcap" : "c.bag");
     BagWriterOptions o;
     o.compression = k.compression;
@@ -150,8 +149,7 @@ TEST(BagErrors, UnknownCompressionIsNamed) {
       read_all(k.format, bytes);
       ADD_FAILURE() << "no error";
     } catch (const Error& e) {
-      EXPECT_NE(std::string(e.what()).find("unknown compression '" + k.name + "'"), std::string::npos)
-          << e.what();
+      EXPECT_NE(std::string(e.what()).find("unknown compression '" + k.name + "'"), std::string::npos) << e.what();
     }
   }
 }

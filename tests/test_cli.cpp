@@ -40,8 +40,8 @@ TEST(Cli, RegisterPrintsJsonAndRecoversTransform) {
   write_pcd(dir / "s.pcd", transformed(make_structured_scene(30000, 2), T.inverse()));
   const RunResult r = run_cli("register " + (dir / "t.ply") + " " + (dir / "s.pcd") + " --voxel 0.5 --downsample 0.2");
   ASSERT_EQ(r.code, 0) << r.err;
-  for (const char* key : {"\"T_target_source\":[[", "\"converged\":true", "\"num_inliers\":", "\"overlap\":",
-                          "\"time_ms\":{\"preprocess\":", "\"align\":"})
+  for (const char* key : {"\"T_target_source\":[[", "\"converged\":true",
+                          "\"num_inliers\":", "\"overlap\":", "\"time_ms\":{\"preprocess\":", "\"align\":"})
     EXPECT_NE(r.out.find(key), std::string::npos) << key << " in " << r.out;
   // Row 0, column 3 is x.
   const size_t pos = r.out.find("[[");

@@ -43,7 +43,8 @@ struct HostTable {
         return true;
       };
       for (size_t i = 0; i < coords.size(); ++i)
-        if (!cuda::voxel_table_insert(slots.data(), mask, coords[i].x(), coords[i].y(), coords[i].z(), static_cast<int32_t>(i), claim))
+        if (!cuda::voxel_table_insert(slots.data(), mask, coords[i].x(), coords[i].y(), coords[i].z(), static_cast<int32_t>(i),
+                                      claim))
           return false;
       return true;
     });
@@ -100,9 +101,7 @@ TEST(Device, BackendSelection) {
     try {
       cuda::make_backend(Device::cuda);
       ADD_FAILURE() << "--device cuda without a GPU must fail";
-    } catch (const Error& e) {
-      EXPECT_NE(std::string(e.what()).find("device cuda"), std::string::npos) << e.what();
-    }
+    } catch (const Error& e) { EXPECT_NE(std::string(e.what()).find("device cuda"), std::string::npos) << e.what(); }
   }
 }
 
@@ -144,7 +143,9 @@ class GpuParity : public ::testing::Test {
   std::shared_ptr<cuda::CudaBackend> gpu;
 };
 
-double relative_difference(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) { return (a - b).norm() / std::max(b.norm(), 1e-30); }
+double relative_difference(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  return (a - b).norm() / std::max(b.norm(), 1e-30);
+}
 
 TEST_F(GpuParity, LinearizationTrialErrorsAndOverlapMatchTheCpu) {
   // Every ordered pair at random poses near the reference (0.05 rad, 0.5 m).
@@ -168,7 +169,8 @@ TEST_F(GpuParity, LinearizationTrialErrorsAndOverlapMatchTheCpu) {
   // Float per point on both sides, double across blocks: differences come from summation order.
   for (size_t f = 0; f < factors.size(); ++f) {
     for (int a = 0; a < 2; ++a) {
-      for (int b = 0; b < 2; ++b) EXPECT_LT(relative_difference(on_gpu[f].H.block<6, 6>(6 * a, 6 * b), on_cpu[f].H.block<6, 6>(6 * a, 6 * b)), 1e-4) << f;
+      for (int b = 0; b < 2; ++b)
+        EXPECT_LT(relative_difference(on_gpu[f].H.block<6, 6>(6 * a, 6 * b), on_cpu[f].H.block<6, 6>(6 * a, 6 * b)), 1e-4) << f;
       EXPECT_LT(relative_difference(on_gpu[f].b.segment<6>(6 * a), on_cpu[f].b.segment<6>(6 * a)), 1e-4) << f;
     }
     EXPECT_NEAR(on_gpu[f].error, on_cpu[f].error, 1e-4 * on_cpu[f].error) << f;
@@ -272,8 +274,8 @@ TEST(GpuParityPreprocessing, CovariancesMatchTheCpu) {
   const MappingConfig config;
   const auto gpu = std::make_shared<cuda::CudaBackend>();
   for (const double elevation_sigma : {0.0, 0.002}) {
-    const PointCloud base = voxel_downsample(range_filter(simulator.scan(3), config.preprocess.min_range, config.preprocess.max_range),
-                                             config.preprocess.downsample);
+    const PointCloud base = voxel_downsample(
+        range_filter(simulator.scan(3), config.preprocess.min_range, config.preprocess.max_range), config.preprocess.downsample);
     CovarianceConfig cc;
     cc.num_neighbors = config.preprocess.num_neighbors;
     cc.elevation_sigma = elevation_sigma;
@@ -302,7 +304,8 @@ TEST(GpuParityPreprocessing, CovariancesMatchTheCpu) {
     }
     EXPECT_GT(compared, base.size() / 2);
     EXPECT_LE(differ, compared / 1000) << differ << " of " << compared << " covariances differ";
-    std::printf("elevation sigma %.3f: %zu of %zu covariances compared, %zu differ\n", elevation_sigma, compared, base.size(), differ);
+    std::printf("elevation sigma %.3f: %zu of %zu covariances compared, %zu differ\n", elevation_sigma, compared, base.size(),
+                differ);
   }
   // Prepared through the backend, as the pipeline does: the registrations land where the CPU's do.
   const ScanNode target = make_scan_node(preprocess_scan(simulator.scan(10), config.preprocess), 1.0);
@@ -338,7 +341,8 @@ TEST(GpuParityConcurrency, ThreadsSharingTheBackendGetWhatEachGetsAlone) {
     for (auto& r : registered) r = gpu->align(alone[1], target.voxels, guess, RegistrationConfig{});
   });
   for (int round = 0; round < 3; ++round)
-    tbb::parallel_for(size_t{0}, raw.size(), [&](size_t f) { together[f] = preprocess_scan(raw[f], config.preprocess, gpu.get()); });
+    tbb::parallel_for(size_t{0}, raw.size(),
+                      [&](size_t f) { together[f] = preprocess_scan(raw[f], config.preprocess, gpu.get()); });
   registering.join();
   for (size_t f = 0; f < raw.size(); ++f) {
     ASSERT_EQ(together[f].size(), alone[f].size()) << f;

@@ -21,9 +21,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-void check_cloud(const PointCloud& c) {
-  EXPECT_TRUE(c.intensities.empty() || c.intensities.size() == c.points.size());
-}
+void check_cloud(const PointCloud& c) { EXPECT_TRUE(c.intensities.empty() || c.intensities.size() == c.points.size()); }
 
 // Every message of a bag, point clouds decoded, as the bag fuzz targets read it.
 void read_bag(BagFormat format, const std::string& d, const std::string& n) {
@@ -42,9 +40,7 @@ const std::map<std::string, std::function<void(const std::string&, const std::st
        [](const std::string& d, const std::string& n) {
          try {
            check_cloud(parse_bin(d, BinFields::xyzi, n));
-         } catch (const Error&) {
-           check_cloud(parse_bin(d, BinFields::xyz, n));
-         }
+         } catch (const Error&) { check_cloud(parse_bin(d, BinFields::xyz, n)); }
        }},
       {"fuzz_pcd", [](const std::string& d, const std::string& n) { check_cloud(parse_pcd(d, n)); }},
       {"fuzz_ply", [](const std::string& d, const std::string& n) { check_cloud(parse_ply(d, n)); }},
@@ -55,13 +51,11 @@ const std::map<std::string, std::function<void(const std::string&, const std::st
          try {
            for (const auto& T : parse_trajectory(d, n).poses) EXPECT_TRUE(T.matrix().allFinite()) << n;
            any = true;
-         } catch (const Error&) {
-         }
+         } catch (const Error&) {}
          try {
            EXPECT_TRUE(parse_kitti_calib_tr(d, n).matrix().allFinite()) << n;
            any = true;
-         } catch (const Error&) {
-         }
+         } catch (const Error&) {}
          if (!any) parse_trajectory(d, n);  // rethrows its Error
        }},
       {"fuzz_labels",
@@ -118,7 +112,9 @@ void replay(const fs::path& root, bool seeds) {
   EXPECT_GT(files, 0u);
 }
 
-TEST(FuzzRegressions, SavedInputsGiveErrorsNotCrashes) { replay(fs::path(GCMAP_SOURCE_DIR) / "tests/data/fuzz_regressions", false); }
+TEST(FuzzRegressions, SavedInputsGiveErrorsNotCrashes) {
+  replay(fs::path(GCMAP_SOURCE_DIR) / "tests/data/fuzz_regressions", false);
+}
 
 TEST(FuzzRegressions, SeedCorporaParse) { replay(fs::path(GCMAP_SOURCE_DIR) / "fuzz/corpus", true); }
 

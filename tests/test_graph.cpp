@@ -23,8 +23,8 @@ TEST(RobustKernel, HandComputedWeights) {
   EXPECT_DOUBLE_EQ(st.weight(5.0), 1.0);     // peak at the offset
   EXPECT_DOUBLE_EQ(st.weight(4.0), 0.5625);  // |4-5| = 1
   EXPECT_DOUBLE_EQ(st.weight(6.0), 0.5625);
-  EXPECT_DOUBLE_EQ(st.weight(0.5), 0.0);     // satisfied: stops pulling
-  EXPECT_DOUBLE_EQ(st.weight(20.0), 0.0);    // grossly wrong: ignored
+  EXPECT_DOUBLE_EQ(st.weight(0.5), 0.0);   // satisfied: stops pulling
+  EXPECT_DOUBLE_EQ(st.weight(20.0), 0.0);  // grossly wrong: ignored
   EXPECT_THROW(RobustKernel::parse("cauchy", 1.0, 0.0), Error);
 }
 
@@ -198,7 +198,8 @@ TEST(LevenbergMarquardt, ShiftedTukeyRejectsOutlierConstraint) {
 TEST(LevenbergMarquardt, StopsOnceTheModelPredictsTheGainAndLosesAtMostTheTolerance) {
   // Inconsistent measurements: the optimum keeps a positive error for the tolerance to scale with.
   PoseGraphProblem p = square_loop(RobustKernel::none(), false);
-  const Eigen::Isometry3d off = p.truth[1].inverse() * p.truth[3] * se3_exp((Vector6d() << 0.02, 0, -0.01, 0.05, 0.1, 0).finished());
+  const Eigen::Isometry3d off =
+      p.truth[1].inverse() * p.truth[3] * se3_exp((Vector6d() << 0.02, 0, -0.01, 0.05, 0.1, 0).finished());
   p.graph.add(std::make_shared<RelativePoseFactor>(1, 3, off, Matrix6d::Identity() * 100.0));
   LMConfig loose_config, tight_config;
   loose_config.relative_error_tol = 1e-3;
@@ -262,9 +263,7 @@ TEST(LevenbergMarquardt, SingularSystemIsReported) {
   try {
     lm.optimize(p.graph, p.initial, {0});
     ADD_FAILURE();
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("pose 7"), std::string::npos) << e.what();
-  }
+  } catch (const Error& e) { EXPECT_NE(std::string(e.what()).find("pose 7"), std::string::npos) << e.what(); }
   FactorGraph g;
   g.add(std::make_shared<RelativePoseFactor>(0, 9, Eigen::Isometry3d::Identity(), Matrix6d::Identity()));
   Values v{{0, Eigen::Isometry3d::Identity()}};
@@ -278,7 +277,8 @@ TEST(LevenbergMarquardt, APoseItsFactorsSayNothingAboutStaysPut) {
   PoseGraphProblem p = square_loop(RobustKernel::none(), false);
   p.initial[3] = p.truth[3];
   const Eigen::Isometry3d T_3_5 = se3_exp((Vector6d() << 0.1, 0.0, 0.3, 1.0, 2.0, 0.0).finished());
-  p.graph.add(std::make_shared<RelativePoseFactor>(3, 5, T_3_5, Matrix6d::Identity() * 100.0, RobustKernel::shifted_tukey(4.0, 5.0)));
+  p.graph.add(
+      std::make_shared<RelativePoseFactor>(3, 5, T_3_5, Matrix6d::Identity() * 100.0, RobustKernel::shifted_tukey(4.0, 5.0)));
   p.initial[5] = p.initial[3] * T_3_5;
   const Eigen::Isometry3d start5 = p.initial[5];
   LevenbergMarquardt lm;

@@ -11,9 +11,7 @@
 namespace gcmap {
 namespace {
 
-void write_bytes(const std::string& path, const std::string& bytes) {
-  std::ofstream(path, std::ios::binary) << bytes;
-}
+void write_bytes(const std::string& path, const std::string& bytes) { std::ofstream(path, std::ios::binary) << bytes; }
 
 PointCloud sample_cloud() {
   PointCloud c;
@@ -124,7 +122,8 @@ TEST(PointCloudIO, BigEndianPly) {
   }
   write_bytes(dir / "be.ply",
               "ply\nformat binary_big_endian 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
-              "property float z\nend_header\n" + body);
+              "property float z\nend_header\n" +
+                  body);
   const PointCloud c = read_point_cloud(dir / "be.ply");
   ASSERT_EQ(c.size(), 2u);
   EXPECT_EQ(c.points[1], Eigen::Vector3f(-4.f, 5.f, 6.5f));
@@ -164,7 +163,11 @@ TEST(PointCloudIO, PcdBinaryCompressed) {
 
 TEST(PointCloudIO, LzfBackReferences) {
   // "abcabcabcX": literal "abc", back reference of length 6 at distance 3, literal "X".
-  const std::string stream = std::string("\x02" "abc", 4) + std::string("\x80\x02", 2) + std::string("\x00X", 2);
+  const std::string stream = std::string(
+                                 "\x02"
+                                 "abc",
+                                 4) +
+                             std::string("\x80\x02", 2) + std::string("\x00X", 2);
   EXPECT_EQ(lzf_decompress(stream, 10), "abcabcabcX");
   EXPECT_THROW(lzf_decompress(std::string("\x80\x10", 2), 4), Error);  // reference before the start
 }
@@ -184,7 +187,9 @@ TEST(PointCloudIO, MalformedInputGivesOneLineErrors) {
   expect_error(dir / "short.pcd", "truncated");
   write_bytes(dir / "hdr.pcd", "FIELDS x y z\nSIZE 4 4 4\n");
   expect_error(dir / "hdr.pcd", "truncated header");
-  write_bytes(dir / "bad.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 10\nproperty float x\nproperty float y\nproperty float z\nend_header\nabc");
+  write_bytes(dir / "bad.ply",
+              "ply\nformat binary_little_endian 1.0\nelement vertex 10\nproperty float x\nproperty float y\nproperty float "
+              "z\nend_header\nabc");
   expect_error(dir / "bad.ply", "truncated");
   write_bytes(dir / "weird.xyz", "1 2 3\n");
   expect_error(dir / "weird.xyz", "unknown point cloud format");
@@ -209,10 +214,13 @@ TEST(PointCloudIO, HeaderSizesAreCheckedAgainstTheData) {
   std::string sizes(8, '\0');
   const uint32_t declared[2] = {4, 4294967292u};
   std::memcpy(&sizes[0], declared, 8);
-  write_bytes(dir / "lzf.pcd", xyz + "WIDTH 357913941\nDATA binary_compressed\n" + sizes + "\x02" "abc");
+  write_bytes(dir / "lzf.pcd", xyz + "WIDTH 357913941\nDATA binary_compressed\n" + sizes +
+                                   "\x02"
+                                   "abc");
   expect_error(dir / "lzf.pcd", "4 bytes cannot expand to 4294967292");
-  const std::string ply = "ply\nformat binary_little_endian 1.0\nelement vertex 1537228672809129302\nproperty float x\n"
-                          "property float y\nproperty float z\nend_header\n";
+  const std::string ply =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 1537228672809129302\nproperty float x\n"
+      "property float y\nproperty float z\nend_header\n";
   write_bytes(dir / "wrap.ply", ply + std::string(8, '\0'));
   expect_error(dir / "wrap.ply", "truncated (0 of 1537228672809129302 vertices)");
 }
@@ -230,9 +238,7 @@ TEST(Labels, ReadsSemanticKittiLabelsAndChecksTheCount) {
     try {
       read_labels(path, n);
       ADD_FAILURE() << path;
-    } catch (const Error& e) {
-      EXPECT_NE(std::string(e.what()).find(path + ": " + what), std::string::npos) << e.what();
-    }
+    } catch (const Error& e) { EXPECT_NE(std::string(e.what()).find(path + ": " + what), std::string::npos) << e.what(); }
   };
   expect_label_error(dir / "a.label", 4, "3 labels for 4 points");
   write_bytes(dir / "t.label", "1234567");
@@ -266,9 +272,7 @@ TEST(TrajectoryIO, RoundTripsAndDetectsFormats) {
   try {
     read_trajectory(dir / "bad.txt");
     ADD_FAILURE();
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("bad.txt:2"), std::string::npos) << e.what();
-  }
+  } catch (const Error& e) { EXPECT_NE(std::string(e.what()).find("bad.txt:2"), std::string::npos) << e.what(); }
   write_bytes(dir / "mixed.txt", "1 0 0 0 0 1 0 0 0 0 1 0\n0 1 2 3 0 0 0 1\n");
   EXPECT_THROW(read_trajectory(dir / "mixed.txt"), Error);
   write_bytes(dir / "empty.txt", "# nothing\n");
@@ -298,9 +302,7 @@ TEST(AtomicWrite, FailureLeavesNoFileAndNamesThePath) {
   try {
     write_file_atomic(dir / "no/such/dir/x.txt", [](std::ostream& o) { o << 1; });
     ADD_FAILURE();
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("no/such/dir/x.txt"), std::string::npos);
-  }
+  } catch (const Error& e) { EXPECT_NE(std::string(e.what()).find("no/such/dir/x.txt"), std::string::npos); }
 }
 
 }  // namespace

@@ -82,8 +82,8 @@ TEST(LazyBackend, DefaultThresholdStaysCloseAndLinearizesLess) {
     worst_to_always = std::max(worst_to_always, test::translation_error(moved.at(k), always.at(k)));
     worst_to_truth = std::max(worst_to_truth, test::translation_error(moved.at(k), s.truth[k]));
   }
-  std::printf("lazy vs always: %.4f m, lazy vs truth: %.4f m; %zu linearizations (always: %zu), %zu reused\n",
-              worst_to_always, worst_to_truth, lazy->linearized(), counting->linearized(), lazy->reused());
+  std::printf("lazy vs always: %.4f m, lazy vs truth: %.4f m; %zu linearizations (always: %zu), %zu reused\n", worst_to_always,
+              worst_to_truth, lazy->linearized(), counting->linearized(), lazy->reused());
 }
 
 TEST(LazyBackend, KeptModelIsTheLinearizationCarriedToTheNewPoses) {

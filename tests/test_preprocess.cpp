@@ -42,7 +42,8 @@ TEST(Downsample, AveragesEachVoxelAndIsDeterministic) {
   // Against a plain ordered map of voxels: same voxels, same lexicographic order, same means.
   std::map<std::array<int64_t, 3>, std::pair<Eigen::Vector3d, int>> reference;
   for (const Eigen::Vector3f& p : big.points) {
-    const std::array<int64_t, 3> key{static_cast<int64_t>(std::floor(p.x() / 0.25)), static_cast<int64_t>(std::floor(p.y() / 0.25)),
+    const std::array<int64_t, 3> key{static_cast<int64_t>(std::floor(p.x() / 0.25)),
+                                     static_cast<int64_t>(std::floor(p.y() / 0.25)),
                                      static_cast<int64_t>(std::floor(p.z() / 0.25))};
     auto& [sum, count] = reference.try_emplace(key, Eigen::Vector3d::Zero(), 0).first->second;
     sum += p.cast<double>();

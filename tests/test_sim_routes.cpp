@@ -101,9 +101,7 @@ TEST(SimRoutes, AnUnknownRouteIsAnErrorNamingTheOption) {
     try {
       sim::make_scenario(scenario, 0, route);
       ADD_FAILURE() << scenario << " " << route;
-    } catch (const Error& e) {
-      EXPECT_NE(std::string(e.what()).find("--route"), std::string::npos) << e.what();
-    }
+    } catch (const Error& e) { EXPECT_NE(std::string(e.what()).find("--route"), std::string::npos) << e.what(); }
   }
   EXPECT_EQ(sim::make_scenario("loop", 0, 1).waypoints.front(), sim::make_scenario("loop", 0, 0).waypoints[2]);
 }

@@ -184,9 +184,7 @@ TEST(LevenbergMarquardt, CholmodReportsTheUnconstrainedPose) {
   try {
     LevenbergMarquardt(config).optimize(p.graph, p.initial, {0});
     ADD_FAILURE();
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("pose 40"), std::string::npos) << e.what();
-  }
+  } catch (const Error& e) { EXPECT_NE(std::string(e.what()).find("pose 40"), std::string::npos) << e.what(); }
 }
 
 TEST(MappingConfig, LinearSolverKey) {
@@ -194,9 +192,7 @@ TEST(MappingConfig, LinearSolverKey) {
   try {
     MappingConfig::parse("global:\n  linear_solver: umfpack\n", "c.yaml");
     ADD_FAILURE();
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("global.linear_solver"), std::string::npos) << e.what();
-  }
+  } catch (const Error& e) { EXPECT_NE(std::string(e.what()).find("global.linear_solver"), std::string::npos) << e.what(); }
   const MappingConfig a = MappingConfig::parse("global:\n  linear_solver: auto\n", "c.yaml");
   EXPECT_EQ(a.global.linear_solver, LinearSolver::automatic);
   EXPECT_EQ(MappingConfig::parse(a.to_yaml(), "dump").global.linear_solver, LinearSolver::automatic);

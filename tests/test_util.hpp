@@ -16,9 +16,9 @@ namespace gcmap::test {
 
 // ../shared/data beside the repository; tests that need it skip when it is absent.
 inline std::string shared_data() { return GCMAP_SHARED_DATA; }
-#define GCMAP_REQUIRE_SHARED_DATA(sub)                                                        \
-  do {                                                                                        \
-    if (!std::filesystem::exists(::gcmap::test::shared_data() + "/" + (sub)))                 \
+#define GCMAP_REQUIRE_SHARED_DATA(sub)                                                         \
+  do {                                                                                         \
+    if (!std::filesystem::exists(::gcmap::test::shared_data() + "/" + (sub)))                  \
       GTEST_SKIP() << "../shared/data/" << (sub) << " is absent: skipping the real-data test"; \
   } while (0)
 

@@ -119,8 +119,9 @@ TEST(Vgicp, GradientOfErrorIsTwiceB) {
   for (int k = 0; k < 6; ++k) {
     Vector6d d = Vector6d::Zero();
     d[k] = h;
-    const double g = (evaluate_vgicp(s.source, s.voxels, T * se3_exp(d)).error -
-                      evaluate_vgicp(s.source, s.voxels, T * se3_exp(-d)).error) / (2 * h);
+    const double g =
+        (evaluate_vgicp(s.source, s.voxels, T * se3_exp(d)).error - evaluate_vgicp(s.source, s.voxels, T * se3_exp(-d)).error) /
+        (2 * h);
     EXPECT_NEAR(g, 2.0 * lin.b_i[k], 5e-3 * lin.b_i.norm()) << "axis " << k;
   }
 }
@@ -196,11 +197,11 @@ TEST(Vgicp, SingularFusedCovariancesDropOutOfEverySum) {
   const VgicpLinearization recorded = linearize_vgicp(source, voxels, T, associations);
   EXPECT_EQ(recorded.error, lin.error);
   EXPECT_EQ(std::count_if(associations.begin(), associations.end(), [](int v) { return v >= 0; }),
-            std::count_if(source.points.begin(), source.points.end(), [&](const Eigen::Vector3f& p) {
-              return voxels.lookup(PointTransform(T) * p) >= 0;
-            }));
+            std::count_if(source.points.begin(), source.points.end(),
+                          [&](const Eigen::Vector3f& p) { return voxels.lookup(PointTransform(T) * p) >= 0; }));
   const Eigen::Isometry3d trial = T * se3_exp((Vector6d() << 0.02, 0.01, -0.03, 0.05, 0.1, -0.02).finished());
-  const VgicpError by_pose = evaluate_vgicp(source, voxels, trial, T), by_index = evaluate_vgicp(source, voxels, trial, associations);
+  const VgicpError by_pose = evaluate_vgicp(source, voxels, trial, T),
+                   by_index = evaluate_vgicp(source, voxels, trial, associations);
   EXPECT_NE(by_pose.error, frozen.error);
   EXPECT_EQ(by_index.error, by_pose.error);
   EXPECT_EQ(by_index.num_inliers, by_pose.num_inliers);

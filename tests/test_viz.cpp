@@ -110,9 +110,7 @@ Rgb pixel_at(const MapPicture& pic, const Eigen::Vector3d& world) {
 std::string error_of(const std::function<void()>& f) {
   try {
     f();
-  } catch (const Error& e) {
-    return e.what();
-  }
+  } catch (const Error& e) { return e.what(); }
   return "(no error)";
 }
 
@@ -190,7 +188,8 @@ TEST(Viz, ErrorsNameTheFile) {
   RenderOptions bad = small();
   bad.size = 10;
   EXPECT_NE(error_of([&] { render_map(s.read(), bad); }).find("size"), std::string::npos);
-  for (const char* text : {"{\"submaps\": [{\"id\": 0", "", "[1, 2]", "{\"submaps\": [], \"factors\": [{\"type\": \"odometry\", \"source\": 1, \"target\": 0}]}",
+  for (const char* text : {"{\"submaps\": [{\"id\": 0", "", "[1, 2]",
+                           "{\"submaps\": [], \"factors\": [{\"type\": \"odometry\", \"source\": 1, \"target\": 0}]}",
                            "{\"submaps\": [], \"factors\": [{\"type\": \"spring\", \"source\": 0, \"target\": 0}]}"}) {
     SyntheticRun::write(s.dir / "graph.json", text);
     EXPECT_NE(error_of([&] { s.read(); }).find(s.dir / "graph.json"), std::string::npos) << text;
@@ -219,7 +218,8 @@ TEST(Viz, ViewPageInlinesThreeJsAndHoldsTheLayers) {
   const std::string lib = read_file(three), orbit = read_file(default_three_dir() + "/examples/js/controls/OrbitControls.js");
   EXPECT_NE(page.find(lib.substr(lib.size() / 2, 300)), std::string::npos);
   EXPECT_NE(page.find(orbit.substr(orbit.size() / 2, 300)), std::string::npos);
-  for (const char* layer : {"\"trajectory\":[5,20,1.5,6,20,1.5", "\"nodes\":[", "matching-cost factors", "explicit loops", "addLayer('map"})
+  for (const char* layer :
+       {"\"trajectory\":[5,20,1.5,6,20,1.5", "\"nodes\":[", "matching-cost factors", "explicit loops", "addLayer('map"})
     EXPECT_NE(page.find(layer), std::string::npos) << layer;
   const std::string open = "<script id=\"gcmap-points\" type=\"text/plain\">";
   const size_t a = page.find(open) + open.size(), b = page.find("</script>", a);
@@ -259,7 +259,8 @@ TEST(Viz, RunPicturesAndCommandsSayWhatTheyWrote) {
   EXPECT_EQ(written[0].path, s.dir / "map.png");
   for (const WrittenFile& f : written) EXPECT_TRUE(fs::exists(f.path)) << f.path;
   test::TempDir tmp;
-  const std::string cmd = std::string(GCMAP_CLI) + " render " + s.dir.path.string() + " --size 300 -o " + (tmp / "m.png") + " >" + (tmp / "out");
+  const std::string cmd =
+      std::string(GCMAP_CLI) + " render " + s.dir.path.string() + " --size 300 -o " + (tmp / "m.png") + " >" + (tmp / "out");
   ASSERT_EQ(std::system(cmd.c_str()), 0);
   EXPECT_NE(read_file(tmp / "out").find("wrote " + (tmp / "m.png")), std::string::npos);
   const std::string bad = std::string(GCMAP_CLI) + " render /nonexistent/run 2>" + (tmp / "err");

@@ -20,7 +20,8 @@ std::string utc(int64_t ns) {
   std::tm tm{};
   gmtime_r(&s, &tm);
   std::ostringstream o;
-  o << std::put_time(&tm, "%Y-%m-%d %H:%M:%S") << "." << std::setw(3) << std::setfill('0') << (ns % 1000000000) / 1000000 << " UTC";
+  o << std::put_time(&tm, "%Y-%m-%d %H:%M:%S") << "." << std::setw(3) << std::setfill('0') << (ns % 1000000000) / 1000000
+    << " UTC";
   return o.str();
 }
 
@@ -109,15 +110,18 @@ void print_table(BagReader& bag) {
     name_w = std::max(name_w, t.name.size());
     type_w = std::max(type_w, t.type.size());
   }
-  std::cout << bag.path() << ": " << bag_format_name(bag.format()) << " bag, " << bag.topics().size() << " topics, "
-            << total << " messages\n";
+  std::cout << bag.path() << ": " << bag_format_name(bag.format()) << " bag, " << bag.topics().size() << " topics, " << total
+            << " messages\n";
   if (total > 0)
     std::cout << "time: " << utc(bag.start_ns()) << " to " << utc(bag.end_ns()) << " (" << std::fixed << std::setprecision(3)
               << double(bag.end_ns() - bag.start_ns()) * 1e-9 << " s)\n";
-  std::cout << "\n" << std::left << std::setw(int(name_w) + 2) << "topic" << std::setw(int(type_w) + 2) << "type" << "messages\n";
+  std::cout << "\n"
+            << std::left << std::setw(int(name_w) + 2) << "topic" << std::setw(int(type_w) + 2) << "type"
+            << "messages\n";
   const auto clouds = point_cloud_topics(bag);
   for (const BagTopic& t : bag.topics()) {
-    std::cout << std::left << std::setw(int(name_w) + 2) << t.name << std::setw(int(type_w) + 2) << t.type << t.message_count << "\n";
+    std::cout << std::left << std::setw(int(name_w) + 2) << t.name << std::setw(int(type_w) + 2) << t.type << t.message_count
+              << "\n";
     if (is_imu_type(t.type) && t.message_count > 0) std::cout << imu_line(describe_imu_topic(bag, t.name)) << "\n";
     if (std::find(clouds.begin(), clouds.end(), t.name) == clouds.end() || t.message_count == 0) continue;
     const CloudTopicInfo c = describe_cloud_topic(bag, t.name);
@@ -135,7 +139,8 @@ void add_bag_info(CLI::App& app, Runner& run) {
     bool json = false;
   };
   auto opt = std::make_shared<Options>();
-  auto* cmd = app.add_subcommand("bag-info", "Topics, types, message counts, time span and point fields of a ROS bag (.mcap, .db3 or its folder, .bag)");
+  auto* cmd = app.add_subcommand(
+      "bag-info", "Topics, types, message counts, time span and point fields of a ROS bag (.mcap, .db3 or its folder, .bag)");
   cmd->add_option("FILE", opt->path, "The bag: .mcap, .bag (ROS 1 v2.0), .db3 or a rosbag2 folder")->required();
   cmd->add_flag("--json", opt->json, "Print JSON instead of a table");
   cmd->callback([opt, &run] {

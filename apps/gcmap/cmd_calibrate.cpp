@@ -114,13 +114,15 @@ int calibrate(const CalibrateOptions& o) {
 
 void add_calibrate(CLI::App& app, Runner& run) {
   auto o = std::make_shared<CalibrateOptions>();
-  auto* cmd = app.add_subcommand("calibrate", "Per-beam elevation offsets of a spinning LiDAR from a recording and its mapped trajectory");
+  auto* cmd = app.add_subcommand("calibrate",
+                                 "Per-beam elevation offsets of a spinning LiDAR from a recording and its mapped trajectory");
   cmd->add_option("input", o->input.input, "Sequence folder or bag (as given to gcmap map)")->required();
   cmd->add_option("--trajectory", o->trajectory, "The run's trajectory.kitti (one pose per scan)")->required();
   cmd->add_option("-o,--output", o->output, "Calibration file to write")->required();
   cmd->add_option("--every", o->every, "Use every N-th scan")->capture_default_str();
   cmd->add_option("--config", o->config_file, "YAML configuration of the run (preprocessing)");
-  cmd->add_flag("--no-level", o->no_level, "Trust the trajectory's roll and pitch (a reference) instead of levelling it by vertical walls");
+  cmd->add_flag("--no-level", o->no_level,
+                "Trust the trajectory's roll and pitch (a reference) instead of levelling it by vertical walls");
   cmd->add_option("--topic", o->input.topic, "Bags: the point-cloud topic (default: the only one)");
   cmd->add_option("--start", o->input.start, "First scan index")->capture_default_str();
   cmd->add_option("--max-frames", o->input.max_frames, "Process at most this many scans (0 = all)")->capture_default_str();

@@ -85,11 +85,13 @@ void add_eval(CLI::App& app, Runner& run) {
         for (auto& T : est.poses) T = Tr * T * Tr.inverse();
       }
       if (gt.size() != est.size())
-        throw Error(opt->est + ": has " + std::to_string(est.size()) + " poses, " + opt->gt + " has " + std::to_string(gt.size()));
+        throw Error(opt->est + ": has " + std::to_string(est.size()) + " poses, " + opt->gt + " has " +
+                    std::to_string(gt.size()));
       if (gt.size() < 2) throw Error(opt->gt + ": has 1 pose, eval needs at least 2");
       const KittiError k = kitti_relative_error(gt.poses, est.poses);
       if (!k.num_segments)
-        std::cerr << opt->gt << ": no segment of 100 m or more, the KITTI relative error is undefined (null); ATE and RPE apply\n";
+        std::cerr << opt->gt
+                  << ": no segment of 100 m or more, the KITTI relative error is undefined (null); ATE and RPE apply\n";
       std::cout << trajectory_report(gt.poses, est.poses, k).dump() << std::endl;
       return 0;
     };
@@ -110,7 +112,8 @@ void add_mme(CLI::App& app, Runner& run) {
   cmd->add_option("--poses", opt->poses, "With --clouds: one pose per scan (KITTI or TUM)");
   cmd->add_option("--radius", opt->radius, "Neighbourhood radius in m")->capture_default_str();
   cmd->add_option("--min-neighbors", opt->min_neighbors, "Points with fewer neighbours are skipped")->capture_default_str();
-  cmd->add_option("--downsample", opt->downsample, "With --clouds: voxel-downsample the assembled map (0 = off)")->capture_default_str();
+  cmd->add_option("--downsample", opt->downsample, "With --clouds: voxel-downsample the assembled map (0 = off)")
+      ->capture_default_str();
   cmd->add_option("--bin-fields", opt->bin_fields, "Layout of .bin files: xyzi or xyz")->capture_default_str();
   cmd->add_option("--threads", opt->threads, "Worker threads (0 = all cores)")->capture_default_str();
   cmd->add_flag("--quiet", opt->quiet, "No progress on stderr");
@@ -124,7 +127,8 @@ void add_mme(CLI::App& app, Runner& run) {
         const auto files = list_scan_files(opt->clouds);
         const Trajectory traj = read_trajectory(opt->poses);
         if (traj.size() != files.size())
-          throw Error(opt->poses + ": has " + std::to_string(traj.size()) + " poses for " + std::to_string(files.size()) + " scans");
+          throw Error(opt->poses + ": has " + std::to_string(traj.size()) + " poses for " + std::to_string(files.size()) +
+                      " scans");
         const BinFields fields = parse_bin_fields(opt->bin_fields);
         Progress reading("mme: scan", files.size(), opt->quiet);
         for (size_t k = 0; k < files.size(); ++k) {
@@ -139,8 +143,8 @@ void add_mme(CLI::App& app, Runner& run) {
         map = read_point_cloud(opt->map, parse_bin_fields(opt->bin_fields));
       }
       Progress points("mme: point", map.size(), opt->quiet);
-      const MapEntropy e = mean_map_entropy(map, opt->radius, opt->min_neighbors,
-                                            [&](size_t done, size_t) { points.update(done); });
+      const MapEntropy e =
+          mean_map_entropy(map, opt->radius, opt->min_neighbors, [&](size_t done, size_t) { points.update(done); });
       points.finish();
       Json out = Json::object();
       out["mme"] = e.mean;

@@ -65,9 +65,7 @@ int localize(const LocalizeOptions& o) {
     PointCloud scan;
     try {
       scan = r->load();
-    } catch (const Error& e) {
-      spdlog::warn("skipping scan: {}", e.what());
-    }
+    } catch (const Error& e) { spdlog::warn("skipping scan: {}", e.what()); }
     const LocalizedFrame f = localizer.add_scan(std::move(scan), r->stamp);
     tracking += f.status != LocalizationStatus::lost;
     overlap += f.map_overlap;
@@ -93,13 +91,15 @@ int localize(const LocalizeOptions& o) {
   for (const std::string& w : source.warnings()) warnings.push_back(w);
   report["input_warnings"] = warnings;
   report["per_frame"] = frames_json(frames, input.frame_offset);
-  write_file_atomic((fs::path(o.output) / "localization.json").string(), [&](std::ostream& out) { out << report.dump() << "\n"; });
+  write_file_atomic((fs::path(o.output) / "localization.json").string(),
+                    [&](std::ostream& out) { out << report.dump() << "\n"; });
   std::fprintf(stderr,
                "Localized %zu frames in %.1f s: %zu held by the map (%.0f %%), %.0f %% of points on average had no map "
                "correspondence; peak memory %.0f MB.\n",
                frames.size(), progress.seconds(), tracking, frames.empty() ? 0.0 : 100.0 * tracking / frames.size(),
                frames.empty() ? 0.0 : 100.0 * (1.0 - overlap / frames.size()), peak_rss_bytes() / 1e6);
-  std::fprintf(stderr, "Wrote %s: trajectory.kitti and .tum (in the map's frame), localization.json (per-frame status).\n", o.output.c_str());
+  std::fprintf(stderr, "Wrote %s: trajectory.kitti and .tum (in the map's frame), localization.json (per-frame status).\n",
+               o.output.c_str());
   return 0;
 }
 
@@ -109,7 +109,8 @@ void add_localize(CLI::App& app, Runner& run) {
   auto o = std::make_shared<LocalizeOptions>();
   auto* cmd = app.add_subcommand("localize", "Track a sequence on a prior map (the session of an earlier gcmap map run)");
   cmd->add_option("--map", o->map, "Output folder of gcmap map (or its session/ folder)")->required();
-  cmd->add_option("input", o->input.input, "Sequence folder (KITTI layout or a folder of scans) or a ROS bag (.mcap, .db3 or its folder, .bag)")
+  cmd->add_option("input", o->input.input,
+                  "Sequence folder (KITTI layout or a folder of scans) or a ROS bag (.mcap, .db3 or its folder, .bag)")
       ->required();
   cmd->add_option("--topic", o->input.topic, "Bags: the point-cloud topic (default: the only one)");
   cmd->add_option("--start-time", o->input.start_time, "Bags: start this many seconds after the first message");

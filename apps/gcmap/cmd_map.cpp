@@ -42,8 +42,9 @@ struct Overrides {
     cmd->add_flag("--no-explicit-loops", no_explicit_loops, "No ScanContext loop constraints (loop.enabled: false)");
     cmd->add_flag("--no-render", no_render, "Do not draw map.png (and, for demo, view.html and plots/)");
     cmd->add_flag("--no-deskew", no_deskew, "No motion compensation of scans with per-point times (preprocess.deskew: false)");
-    cmd->add_flag("--deskew-from-azimuth", deskew_from_azimuth,
-                  "Scans without per-point times: derive them from the azimuth of a spinning sensor (preprocess.deskew_from_azimuth)");
+    cmd->add_flag(
+        "--deskew-from-azimuth", deskew_from_azimuth,
+        "Scans without per-point times: derive them from the azimuth of a spinning sensor (preprocess.deskew_from_azimuth)");
     cmd->add_option("--elevation-calibration", elevation_calibration,
                     "Per-beam elevation offsets from `gcmap calibrate` (preprocess.elevation_calibration)");
     cmd->add_option("--threads", threads, "Worker threads (0 = all cores)")->capture_default_str();
@@ -61,9 +62,7 @@ struct Overrides {
     if (!elevation_calibration.empty()) c.preprocess.elevation_calibration = elevation_calibration;
     try {
       c.validate();
-    } catch (const Error& e) {
-      throw Error(std::string("bad option: ") + e.what());
-    }
+    } catch (const Error& e) { throw Error(std::string("bad option: ") + e.what()); }
     return c;
   }
 };
@@ -75,14 +74,16 @@ void add_map(CLI::App& app, Runner& run) {
   auto ov = std::make_shared<Overrides>();
   auto* cmd = app.add_subcommand("map", "Map a LiDAR sequence: odometry, submaps, global matching-cost optimization");
   cmd->add_option("input", opt->input,
-                  "KITTI sequence folder (velodyne/*.bin ...), a folder of .bin/.pcd/.ply scans, or a ROS bag (.mcap, .db3 or its folder, .bag)")
+                  "KITTI sequence folder (velodyne/*.bin ...), a folder of .bin/.pcd/.ply scans, or a ROS bag (.mcap, .db3 or "
+                  "its folder, .bag)")
       ->required();
   cmd->add_option("--topic", opt->topic, "Bags: the point-cloud topic (default: the only one)");
   cmd->add_option("--start-time", opt->start_time, "Bags: start this many seconds after the first message");
   cmd->add_option("--duration", opt->duration, "Bags: map this many seconds (0 = to the end)");
   cmd->add_option("-o,--output", opt->output, "Output folder")->required();
   cmd->add_option("--times", opt->times_file,
-                  "Folders: the scans' stamps, one line per scan (default: times.txt in the sequence folder, in the scans folder or beside it)");
+                  "Folders: the scans' stamps, one line per scan (default: times.txt in the sequence folder, in the scans folder "
+                  "or beside it)");
   auto bin_fields = std::make_shared<std::string>("xyzi");
   cmd->add_option("--bin-fields", *bin_fields, "Layout of .bin scans: xyzi (KITTI) or xyz")->capture_default_str();
   cmd->add_option("--initial-trajectory", opt->initial_trajectory, "KITTI or TUM poses to use instead of the built-in odometry");
@@ -103,10 +104,13 @@ void add_map(CLI::App& app, Runner& run) {
       std::fprintf(stderr, "%s %zu frames in %.1f s (%.1f frames/s): %zu submaps, %zu global factors; peak memory %.0f MB.\n",
                    r.signal ? "Interrupted: mapped" : "Mapped", r.frames, r.seconds, r.fps, r.submaps, r.factors,
                    peak_rss_bytes() / 1e6);
-      std::fprintf(stderr, "Wrote %s: trajectory.kitti and .tum (optimized poses), odometry.kitti, map.ply%s, graph.json, stats.json%s, quality.json and report.html (run quality, verdict first), config.yaml, session/ (for localize and merge).\n",
+      std::fprintf(stderr,
+                   "Wrote %s: trajectory.kitti and .tum (optimized poses), odometry.kitti, map.ply%s, graph.json, stats.json%s, "
+                   "quality.json and report.html (run quality, verdict first), config.yaml, session/ (for localize and merge).\n",
                    opt->output.c_str(), opt->config.output.pcd ? " and map.pcd" : "", r.signal ? " (marked partial)" : "");
       if (!ov->no_render)
-        for (const auto& f : viz::write_run_pictures(opt->output, {})) std::fprintf(stderr, "Wrote %s: %s.\n", f.path.c_str(), f.what.c_str());
+        for (const auto& f : viz::write_run_pictures(opt->output, {}))
+          std::fprintf(stderr, "Wrote %s: %s.\n", f.path.c_str(), f.what.c_str());
       if (!r.failure.empty()) std::fprintf(stderr, "gcmap: %s\n", r.failure.c_str());
       return r.signal ? 128 + r.signal : r.failure.empty() ? 0 : 2;
     };
@@ -132,7 +136,8 @@ void add_demo(CLI::App& app, Runner& run) {
       namespace fs = std::filesystem;
       const auto threads = limit_threads(ov->threads);
       const bool temporary = opt->output.empty();
-      const fs::path dir = temporary ? fs::temp_directory_path() / ("gcmap_demo_" + std::to_string(::getpid())) : fs::path(opt->output);
+      const fs::path dir =
+          temporary ? fs::temp_directory_path() / ("gcmap_demo_" + std::to_string(::getpid())) : fs::path(opt->output);
       struct Cleanup {
         fs::path p;
         bool on;
@@ -185,7 +190,8 @@ void add_demo(CLI::App& app, Runner& run) {
         std::printf("pictures:\n");
         for (const auto& f : viz::write_run_pictures(mo.output, po)) std::printf("  %s: %s\n", f.path.c_str(), f.what.c_str());
       }
-      std::printf("outputs: %s\n", temporary ? "(temporary, removed; give -o DIR to keep them and their pictures)" : (dir / "map").string().c_str());
+      std::printf("outputs: %s\n", temporary ? "(temporary, removed; give -o DIR to keep them and their pictures)"
+                                             : (dir / "map").string().c_str());
       return 0;
     };
   });

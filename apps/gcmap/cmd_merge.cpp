@@ -139,8 +139,10 @@ int merge(const MergeOptions& o) {
                m.submaps.size(), r.cross_factors, r.optimization.iterations);
   if (!unconnected.empty())
     std::fprintf(stderr, "Unconnected (no verified place shared with the others, left out): %s\n", unconnected.c_str());
-  std::fprintf(stderr, "Wrote %s: session/, trajectory_K.kitti per connected input K (the first input's first frame the identity), "
-               "map.ply, merge.json.\n", o.output.c_str());
+  std::fprintf(stderr,
+               "Wrote %s: session/, trajectory_K.kitti per connected input K (the first input's first frame the identity), "
+               "map.ply, merge.json.\n",
+               o.output.c_str());
   return 0;
 }
 

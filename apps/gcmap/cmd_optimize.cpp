@@ -28,9 +28,11 @@ void add_optimize(CLI::App& app, Runner& run) {
   cmd->add_option("--poses", opt->poses, "Initial pose per cloud: 'vN x y z qx qy qz qw' or TUM lines")->required();
   cmd->add_option("--clouds", opt->clouds, "Point clouds, one per pose, in order")->required();
   cmd->add_option("--out", opt->out, "Write the optimized poses here, in the input format");
-  cmd->add_option("--min-overlap", opt->min_overlap, "Create a factor for pairs with at least this voxel overlap")->capture_default_str();
+  cmd->add_option("--min-overlap", opt->min_overlap, "Create a factor for pairs with at least this voxel overlap")
+      ->capture_default_str();
   cmd->add_option("--voxel", opt->voxel, "VGICP voxel resolution in m")->capture_default_str();
-  cmd->add_option("--downsample", opt->downsample, "Voxel downsampling of the input clouds in m (0 = off)")->capture_default_str();
+  cmd->add_option("--downsample", opt->downsample, "Voxel downsampling of the input clouds in m (0 = off)")
+      ->capture_default_str();
   cmd->add_option("--bin-fields", opt->bin_fields, "Layout of .bin files: xyzi (KITTI) or xyz")->capture_default_str();
   cmd->add_option("--max-iterations", opt->max_iterations, "LM iteration limit")->capture_default_str();
   cmd->add_option("--threads", opt->threads, "Worker threads (0 = all cores)")->capture_default_str();
@@ -48,7 +50,8 @@ void add_optimize(CLI::App& app, Runner& run) {
       Trajectory traj = read_trajectory(o.poses);
       if (traj.format == TrajectoryFormat::kitti) throw Error(o.poses + ": expected 'vN x y z qx qy qz qw' or TUM lines");
       if (traj.size() != o.clouds.size())
-        throw Error(o.poses + ": has " + std::to_string(traj.size()) + " poses but " + std::to_string(o.clouds.size()) + " clouds were given");
+        throw Error(o.poses + ": has " + std::to_string(traj.size()) + " poses but " + std::to_string(o.clouds.size()) +
+                    " clouds were given");
 
       std::vector<ScanNode> nodes(o.clouds.size());
       Values values;

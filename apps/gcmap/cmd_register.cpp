@@ -60,7 +60,8 @@ void add_register(CLI::App& app, Runner& run) {
       PointCloud source = read_point_cloud(o.source, fields);
       if (target.size() < 10) throw Error(o.target + ": too few points (" + std::to_string(target.size()) + ")");
       if (source.size() < 10) throw Error(o.source + ": too few points (" + std::to_string(source.size()) + ")");
-      const std::shared_ptr<LinearizationBackend> backend = cuda::make_backend(parse_device(o.device, "--device"));  // outside the timings
+      const std::shared_ptr<LinearizationBackend> backend =
+          cuda::make_backend(parse_device(o.device, "--device"));  // outside the timings
       watch.restart();
       if (o.downsample > 0) {
         target = voxel_downsample(target, o.downsample);

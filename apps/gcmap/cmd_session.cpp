@@ -18,17 +18,19 @@ void add_session(CLI::App& app, Runner& run) {
   info->callback([dir, json, &run] {
     run = [dir, json] {
       namespace fs = std::filesystem;
-      const std::string folder = fs::exists(fs::path(*dir) / "session" / "manifest.yaml") ? (fs::path(*dir) / "session").string() : *dir;
+      const std::string folder =
+          fs::exists(fs::path(*dir) / "session" / "manifest.yaml") ? (fs::path(*dir) / "session").string() : *dir;
       Progress loading("loading session: submap", 0, false);
       const Session s = read_session(folder, loading.callback());
       loading.finish();
       const SessionInfo i = session_info(s, folder);
       const Eigen::Vector3d size = i.extent.isEmpty() ? Eigen::Vector3d::Zero() : Eigen::Vector3d(i.extent.sizes());
       if (*json) {
-        std::printf("{\"version\":%d,\"created_by\":\"%s\",\"frames\":%zu,\"submaps\":%zu,\"keyframes\":%zu,\"points\":%zu,"
-                    "\"factors\":%zu,\"extent_m\":[%.3f,%.3f,%.3f],\"bytes\":%ju}\n",
-                    i.version, i.created_by.c_str(), i.frames, i.submaps, i.keyframes, i.points, i.factors, size.x(), size.y(),
-                    size.z(), i.bytes);
+        std::printf(
+            "{\"version\":%d,\"created_by\":\"%s\",\"frames\":%zu,\"submaps\":%zu,\"keyframes\":%zu,\"points\":%zu,"
+            "\"factors\":%zu,\"extent_m\":[%.3f,%.3f,%.3f],\"bytes\":%ju}\n",
+            i.version, i.created_by.c_str(), i.frames, i.submaps, i.keyframes, i.points, i.factors, size.x(), size.y(), size.z(),
+            i.bytes);
         return 0;
       }
       std::printf("session     %s (format version %d, written by %s)\n", folder.c_str(), i.version, i.created_by.c_str());

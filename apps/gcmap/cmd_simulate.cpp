@@ -15,8 +15,8 @@ void add_simulate(CLI::App& app, Runner& run) {
   auto format = std::make_shared<std::string>("kitti"), time_field = std::make_shared<std::string>("ouster"),
        compression = std::make_shared<std::string>("none"), message = std::make_shared<std::string>("pointcloud2"),
        mistake = std::make_shared<std::string>("none");
-  auto* cmd = app.add_subcommand("simulate",
-                                 "Generate a synthetic LiDAR sequence with exact ground truth (KITTI layout or a ROS bag)");
+  auto* cmd =
+      app.add_subcommand("simulate", "Generate a synthetic LiDAR sequence with exact ground truth (KITTI layout or a ROS bag)");
   cmd->add_option("-o,--output", *out,
                   "Output folder: velodyne/ (kitti) or the bag drive.mcap, drive/ (db3: rosbag2 folder) or drive.bag, "
                   "with poses.txt, times.txt, scenario.json (and labels/) beside it")
@@ -25,21 +25,23 @@ void add_simulate(CLI::App& app, Runner& run) {
                   "kitti, mcap, db3 or bag (ROS 1): a bag holds /points (sensor_msgs/PointCloud2 or, with --message "
                   "livox, Livox CustomMsg; header stamps as in times.txt)")
       ->capture_default_str();
-  auto* message_opt = cmd->add_option("--message", *message,
-                  "Bags: the scans as pointcloud2 (sensor_msgs/PointCloud2) or livox (Livox CustomMsg: "
-                  "livox_ros_driver/CustomMsg in a ROS 1 bag, livox_ros_driver2/msg/CustomMsg in mcap and db3; "
-                  "offset_time in ns after timebase = the stamp, reflectivity = 255 x intensity)")
-      ->capture_default_str();
-  auto* time_opt = cmd->add_option("--time-field", *time_field,
-                  "PointCloud2 bags, with motion distortion: the per-point time as ouster (t, uint32 ns), velodyne (time, "
-                  "float32 s), hesai (timestamp, float64 absolute s) or livox (offset_time, uint32 ns)")
-      ->capture_default_str();
-  auto* compression_opt =
-      cmd->add_option("--compression", *compression, "Bag chunks: none; mcap: zstd or lz4; bag: bz2 or lz4")
+  auto* message_opt =
+      cmd->add_option("--message", *message,
+                      "Bags: the scans as pointcloud2 (sensor_msgs/PointCloud2) or livox (Livox CustomMsg: "
+                      "livox_ros_driver/CustomMsg in a ROS 1 bag, livox_ros_driver2/msg/CustomMsg in mcap and db3; "
+                      "offset_time in ns after timebase = the stamp, reflectivity = 255 x intensity)")
           ->capture_default_str();
+  auto* time_opt =
+      cmd->add_option("--time-field", *time_field,
+                      "PointCloud2 bags, with motion distortion: the per-point time as ouster (t, uint32 ns), velodyne (time, "
+                      "float32 s), hesai (timestamp, float64 absolute s) or livox (offset_time, uint32 ns)")
+          ->capture_default_str();
+  auto* compression_opt = cmd->add_option("--compression", *compression, "Bag chunks: none; mcap: zstd or lz4; bag: bz2 or lz4")
+                              ->capture_default_str();
   cmd->add_option("--time-mistake", *mistake,
                   "Write the per-point times wrong on purpose, as real recordings do (to test inspect and map): ms, ns "
-                  "(units where s are expected), absolute (s on a clock started 1000 s before the drive, where s after the stamp are expected), "
+                  "(units where s are expected), absolute (s on a clock started 1000 s before the drive, where s after the stamp "
+                  "are expected), "
                   "sweep_end (stamps at the end of each sweep) or zero; other than zero: kitti or --time-field velodyne")
       ->capture_default_str();
   cmd->add_option("--scenario", opt->scenario,
@@ -97,8 +99,8 @@ void add_simulate(CLI::App& app, Runner& run) {
       Stopwatch w;
       const size_t points = sim::write_simulation(*out, *opt, output, false);
       const std::string bag = output.bag ? ",\"bag\":\"" + sim::simulated_bag_path(*out, *output.bag) + "\"" : "";
-      std::cout << "{\"output\":\"" << *out << "\"" << bag << ",\"points\":" << points
-                << ",\"seconds\":" << w.ms() / 1000.0 << "}\n";
+      std::cout << "{\"output\":\"" << *out << "\"" << bag << ",\"points\":" << points << ",\"seconds\":" << w.ms() / 1000.0
+                << "}\n";
       return 0;
     };
   });

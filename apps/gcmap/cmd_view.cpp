@@ -12,7 +12,8 @@ void add_view(CLI::App& app, Runner& run) {
     viz::ViewOptions view;
   };
   auto opt = std::make_shared<Options>();
-  auto* cmd = app.add_subcommand("view", "Write OUT/view.html: a 3D viewer of the map, trajectory and factor graph for any browser");
+  auto* cmd =
+      app.add_subcommand("view", "Write OUT/view.html: a 3D viewer of the map, trajectory and factor graph for any browser");
   cmd->add_option("out", opt->dir, "Output folder of gcmap map (map.ply, trajectory.kitti, graph.json)")->required();
   cmd->add_option("-o,--output", opt->output, "Page to write (default: OUT/view.html)");
   cmd->add_option("--max-points", opt->view.max_points, "The map is evenly decimated to at most this many points")

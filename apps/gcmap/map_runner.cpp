@@ -116,7 +116,8 @@ class SignalScope {
   }
 
  private:
-  struct sigaction old_int_ {}, old_term_ {};
+  struct sigaction old_int_ {
+  }, old_term_{};
 };
 
 void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapRunOptions& o, int signal,
@@ -163,7 +164,8 @@ void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapR
     stats["input_warnings"] = warnings;
     stats["assumptions"] = assumptions;
     stats["host_memory"] = host_memory_json(pipeline);
-    if (const auto* gpu = dynamic_cast<const cuda::CudaBackend*>(&pipeline.backend())) stats["device_memory"] = device_memory_json(*gpu, pipeline);
+    if (const auto* gpu = dynamic_cast<const cuda::CudaBackend*>(&pipeline.backend()))
+      stats["device_memory"] = device_memory_json(*gpu, pipeline);
     write_file_atomic((out / "stats.json").string(), [&](std::ostream& s) { s << stats.dump() << "\n"; });
     write_file_atomic((out / "quality.json").string(), [&](std::ostream& s) { s << quality_json(quality).dump() << "\n"; });
     write_file_atomic((out / "report.html").string(), [&](std::ostream& s) { s << viz::report_html(quality, pipeline); });
@@ -218,9 +220,13 @@ Input open_input(const MapRunOptions& o) {
   if (o.start < 0) throw Error("--start: must be >= 0");
   if (o.max_frames < 0) throw Error("--max-frames: must be >= 0");
   const PreprocessConfig& pc = o.config.preprocess;
-  const InputOptions io{.times_file = o.times_file, .bin_fields = o.bin_fields, .topic = o.topic,
-                        .kitti_vertical_correction = pc.kitti_vertical_correction, .deskew = pc.deskew,
-                        .deskew_from_azimuth = pc.deskew_from_azimuth, .elevation_calibration = pc.elevation_calibration};
+  const InputOptions io{.times_file = o.times_file,
+                        .bin_fields = o.bin_fields,
+                        .topic = o.topic,
+                        .kitti_vertical_correction = pc.kitti_vertical_correction,
+                        .deskew = pc.deskew,
+                        .deskew_from_azimuth = pc.deskew_from_azimuth,
+                        .elevation_calibration = pc.elevation_calibration};
   if (is_bag_path(o.input)) {
     if (o.start_time < 0 || o.duration < 0) throw Error("--start-time and --duration must be >= 0");
     if (!o.times_file.empty()) throw Error("--times applies to folders of scans, not to the bag " + o.input);
@@ -280,7 +286,8 @@ MapRunResult run_mapping(const MapRunOptions& o) {
   }
   const size_t unusable = pipeline.stats().unusable, frames = pipeline.num_frames();
   if (!signal && unusable == frames)
-    throw Error(o.input + ": none of its " + std::to_string(frames) + " scans could be mapped (unreadable, empty or too few points: see the warnings above); nothing written");
+    throw Error(o.input + ": none of its " + std::to_string(frames) +
+                " scans could be mapped (unreadable, empty or too few points: see the warnings above); nothing written");
   write_outputs(pipeline, input.frame_offset, o, signal, source.warnings(), input.assumptions.to_json());
 
   MapRunResult r;

@@ -13,9 +13,9 @@ struct MapRunOptions {
   std::string input, output, initial_trajectory;
   MappingConfig config;
   int start = 0, max_frames = 0;
-  std::string topic;                      // bags: the point-cloud topic (empty: the only one)
-  std::string times_file;                 // folders: --times, the stamps file (empty: looked for beside the scans)
-  BinFields bin_fields = BinFields::xyzi;  // folders: layout of .bin scans
+  std::string topic;                        // bags: the point-cloud topic (empty: the only one)
+  std::string times_file;                   // folders: --times, the stamps file (empty: looked for beside the scans)
+  BinFields bin_fields = BinFields::xyzi;   // folders: layout of .bin scans
   double start_time = 0.0, duration = 0.0;  // bags: s after the first message; duration 0: to the end
   Device device = Device::automatic;
   bool quiet = false;
@@ -24,7 +24,7 @@ struct MapRunOptions {
 struct MapRunResult {
   size_t frames = 0, submaps = 0, factors = 0;
   double seconds = 0.0, fps = 0.0;
-  int signal = 0;  // SIGINT or SIGTERM when interrupted (outputs are then partial)
+  int signal = 0;       // SIGINT or SIGTERM when interrupted (outputs are then partial)
   std::string failure;  // why the run failed although it wrote its outputs (most scans unusable), else empty
 };
 
@@ -32,7 +32,7 @@ struct MapRunResult {
 struct Input {
   std::unique_ptr<ScanSource> source;
   bool kitti_hdl64 = false;
-  int frame_offset = 0;  // added to frame numbers in graph.json
+  int frame_offset = 0;          // added to frame numbers in graph.json
   InputAssumptions assumptions;  // what the run assumes about the input, and why
 };
 

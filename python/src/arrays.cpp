@@ -121,7 +121,8 @@ std::vector<Eigen::Isometry3d> to_poses(py::handle object, const char* what) {
     throw Error(std::string(what) + ": expected shape (n, 4, 4), got " + shape_text(a));
   std::vector<Eigen::Isometry3d> poses;
   for (py::ssize_t k = 0; k < a.shape(0); ++k)
-    poses.push_back(pose_at(static_cast<const char*>(a.data()) + k * a.strides(0), a.strides(1), a.strides(2), a.itemsize(), what));
+    poses.push_back(
+        pose_at(static_cast<const char*>(a.data()) + k * a.strides(0), a.strides(1), a.strides(2), a.itemsize(), what));
   return poses;
 }
 
@@ -129,9 +130,8 @@ py::array points_array(PointCloud&& cloud, py::object* intensities) {
   static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "points are packed float triples");
   const auto n = static_cast<py::ssize_t>(cloud.size());
   if (intensities) {
-    *intensities = cloud.has_intensities()
-                       ? py::object(owning(std::move(cloud.intensities), {n}, {py::ssize_t{sizeof(float)}}))
-                       : py::object(py::none());
+    *intensities = cloud.has_intensities() ? py::object(owning(std::move(cloud.intensities), {n}, {py::ssize_t{sizeof(float)}}))
+                                           : py::object(py::none());
   }
   return owning(std::move(cloud.points), {n, 3}, {py::ssize_t{3 * sizeof(float)}, py::ssize_t{sizeof(float)}});
 }
@@ -142,7 +142,8 @@ py::array points_view(std::shared_ptr<const PointCloud> cloud) {
   const float* data = cloud->points.front().data();
   auto* keep = new std::shared_ptr<const PointCloud>(std::move(cloud));
   py::capsule owner(keep, [](void* p) { delete static_cast<std::shared_ptr<const PointCloud>*>(p); });
-  py::array view = py::array_t<float>({n, py::ssize_t{3}}, {py::ssize_t{3 * sizeof(float)}, py::ssize_t{sizeof(float)}}, data, owner);
+  py::array view =
+      py::array_t<float>({n, py::ssize_t{3}}, {py::ssize_t{3 * sizeof(float)}, py::ssize_t{sizeof(float)}}, data, owner);
   py::detail::array_proxy(view.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
   return view;
 }

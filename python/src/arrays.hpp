@@ -40,8 +40,7 @@ auto with_file(const std::string& path, F&& f) {
 // An (N,3) or (N,4) float32/float64 array (the 4th column is intensity). `times` (per-point
 // seconds) and `intensities`, when given, are (N,). Rows with a non-finite coordinate are dropped,
 // as the file readers do. Throws Error naming the argument for another shape or dtype.
-PointCloud to_cloud(py::handle array, const char* what, py::handle times = py::none(),
-                    py::handle intensities = py::none());
+PointCloud to_cloud(py::handle array, const char* what, py::handle times = py::none(), py::handle intensities = py::none());
 // A 4x4 rigid transform (float, finite, rotation orthonormal within 1e-3).
 Eigen::Isometry3d to_pose(py::handle array, const char* what);
 // (n,4,4).

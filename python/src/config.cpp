@@ -63,9 +63,8 @@ the config as it was. to_yaml() / from_yaml() / load() round-trip the YAML confi
           },
           py::arg("key"), py::arg("value"), "Sets \"section.key\"; ValueError naming the key if the result is invalid.")
       .def("__getitem__", &MappingConfig::get)
-      .def("__setitem__", [](MappingConfig& c, const std::string& key, const MappingConfig::Value& value) {
-        update(c, py::dict(py::arg(key.c_str()) = py::cast(value)));
-      })
+      .def("__setitem__", [](MappingConfig& c, const std::string& key,
+                             const MappingConfig::Value& value) { update(c, py::dict(py::arg(key.c_str()) = py::cast(value))); })
       .def("update", &update, py::arg("values"), "Sets every entry of a flat or nested dict, all or none.")
       .def("to_dict", &to_dict, "A nested dict {section: {key: value}}.")
       .def("validate", &MappingConfig::validate, "Raises ValueError naming the first invalid key.")

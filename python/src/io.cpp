@@ -33,7 +33,8 @@ Raises FileNotFoundError for a missing file and ValueError for a malformed one.)
 
   m.def(
       "write_points",
-      [](const std::string& path, const py::array& points, const std::optional<py::array>& intensities, const std::string& bin_fields) {
+      [](const std::string& path, const py::array& points, const std::optional<py::array>& intensities,
+         const std::string& bin_fields) {
         const BinFields fields = parse_bin_fields(bin_fields);
         const PointCloud cloud = to_cloud(points, "points", py::none(), or_none(intensities));
         py::gil_scoped_release release;
@@ -59,7 +60,8 @@ temporary name and renamed, so a reader never sees half of it.)");
 
   m.def(
       "write_trajectory",
-      [](const std::string& path, const py::array& poses, const std::string& format, const std::optional<std::vector<double>>& stamps) {
+      [](const std::string& path, const py::array& poses, const std::string& format,
+         const std::optional<std::vector<double>>& stamps) {
         Trajectory t;
         t.format = parse_trajectory_format(format);
         t.poses = to_poses(poses, "poses");

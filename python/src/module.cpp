@@ -19,13 +19,9 @@ PYBIND11_MODULE(_gcmap, m) {
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
-    } catch (const FileMissing& e) {
-      PyErr_SetString(PyExc_FileNotFoundError, e.what());
-    } catch (const StateError& e) {
+    } catch (const FileMissing& e) { PyErr_SetString(PyExc_FileNotFoundError, e.what()); } catch (const StateError& e) {
       PyErr_SetString(PyExc_RuntimeError, e.what());
-    } catch (const gcmap::Error& e) {
-      PyErr_SetString(PyExc_ValueError, e.what());
-    }
+    } catch (const gcmap::Error& e) { PyErr_SetString(PyExc_ValueError, e.what()); }
   });
 
   bind_io(m);

@@ -145,7 +145,8 @@ placed by the motion model). RuntimeError after finish().)")
           "stats", [](P& p) { return from_json(p.locked([](MP& mp) { return stats_json(mp); })); },
           "stats.json of `gcmap map` as a dict: frames, rate, device, per-module timings, optimization per submap.")
       .def_property_readonly(
-          "device", [](P& p) { return p.locked([](MP& mp) { return mp.backend().name(); }); }, "\"cpu\" or \"cuda: <device name>\".")
+          "device", [](P& p) { return p.locked([](MP& mp) { return mp.backend().name(); }); },
+          "\"cpu\" or \"cuda: <device name>\".")
       .def_property_readonly(
           "config", [](P& p) { return p.locked([](MP& mp) { return mp.config(); }); }, "A copy of the config in use.")
       .def(

@@ -82,17 +82,21 @@ PairOptions pair_options(double voxel, double downsample, const std::string& met
 
 void bind_registration(py::module_& m) {
   py::class_<PairResult>(m, "RegistrationResult", "The outcome of gcmap.register().")
-      .def_property_readonly("T_target_source", [](const PairResult& p) { return pose_array(p.r.T_target_source); },
-                             "4x4 float64: maps source points into the target frame.")
-      .def_property_readonly("converged", [](const PairResult& p) { return p.r.converged; },
-                             "True when the last accepted step was below 1e-4 rad and 1e-4 m.")
+      .def_property_readonly(
+          "T_target_source", [](const PairResult& p) { return pose_array(p.r.T_target_source); },
+          "4x4 float64: maps source points into the target frame.")
+      .def_property_readonly(
+          "converged", [](const PairResult& p) { return p.r.converged; },
+          "True when the last accepted step was below 1e-4 rad and 1e-4 m.")
       .def_property_readonly("iterations", [](const PairResult& p) { return p.r.iterations; })
-      .def_property_readonly("error", [](const PairResult& p) { return p.r.error; },
-                             "Sum of the per-point matching costs at the solution.")
-      .def_property_readonly("num_inliers", [](const PairResult& p) { return p.r.num_inliers; },
-                             "Source points (after downsampling) with a target voxel or neighbour.")
-      .def_property_readonly("overlap", [](const PairResult& p) { return p.overlap; },
-                             "Fraction of source points that fall in an occupied target voxel.")
+      .def_property_readonly(
+          "error", [](const PairResult& p) { return p.r.error; }, "Sum of the per-point matching costs at the solution.")
+      .def_property_readonly(
+          "num_inliers", [](const PairResult& p) { return p.r.num_inliers; },
+          "Source points (after downsampling) with a target voxel or neighbour.")
+      .def_property_readonly(
+          "overlap", [](const PairResult& p) { return p.overlap; },
+          "Fraction of source points that fall in an occupied target voxel.")
       .def("__repr__", [](const PairResult& p) {
         const Eigen::Vector3d t = p.r.T_target_source.translation();
         return "RegistrationResult(converged=" + std::string(p.r.converged ? "True" : "False") +
@@ -102,8 +106,8 @@ void bind_registration(py::module_& m) {
 
   m.def(
       "register",
-      [](const py::array& target, const py::array& source, const std::optional<py::array>& init, double voxel, double downsample, const std::string& method,
-         int max_iterations, int threads, const std::string& device) {
+      [](const py::array& target, const py::array& source, const std::optional<py::array>& init, double voxel, double downsample,
+         const std::string& method, int max_iterations, int threads, const std::string& device) {
         const PairOptions o = pair_options(voxel, downsample, method, max_iterations, threads, device);
         const PointCloud t = to_cloud(target, "target"), s = to_cloud(source, "source");
         if (t.size() < 10) throw Error("target: too few finite points (" + std::to_string(t.size()) + ")");

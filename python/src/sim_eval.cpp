@@ -85,8 +85,8 @@ void bind_sim_eval(py::module_& m) {
           per_length.append(py::dict(py::arg("length") = s.length, py::arg("translation_percent") = s.translation_percent,
                                      py::arg("rotation_deg_per_100m") = s.rotation_deg_per_100m, py::arg("count") = s.count));
         return py::dict(py::arg("translation_percent") = k.translation_percent,
-                        py::arg("rotation_deg_per_100m") = k.rotation_deg_per_100m,
-                        py::arg("num_segments") = k.num_segments, py::arg("per_length") = per_length);
+                        py::arg("rotation_deg_per_100m") = k.rotation_deg_per_100m, py::arg("num_segments") = k.num_segments,
+                        py::arg("per_length") = per_length);
       },
       py::arg("gt"), py::arg("est"),
       R"(KITTI odometry relative error over 100..800 m segments of (n, 4, 4) trajectories: a dict with

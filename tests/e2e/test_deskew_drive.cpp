@@ -59,13 +59,12 @@ TEST(DeskewDrive, CompensatesMostOfTheDistortionThroughACorner) {
   const std::vector<PointCloud> undistorted_scans = simulate(false, gt), distorted_scans = simulate(true, gt);
   ASSERT_TRUE(distorted_scans[0].has_times());
   const DriveErrors off = track_drive(distorted_scans, gt, false), on = track_drive(distorted_scans, gt, true),
-                    once = track_drive(distorted_scans, gt, true, false),
-                    undistorted = track_drive(undistorted_scans, gt, true);
+                    once = track_drive(distorted_scans, gt, true, false), undistorted = track_drive(undistorted_scans, gt, true);
   for (const auto& [what, off_e, once_e, on_e, ideal_e] :
        {std::tuple{"odometry", off.odometry, once.odometry, on.odometry, undistorted.odometry},
         std::tuple{"trajectory", off.trajectory, once.trajectory, on.trajectory, undistorted.trajectory}})
-    std::printf("%s RPE m / deg: deskew off %.4f / %.4f, once %.4f / %.4f, again %.4f / %.4f, undistorted %.4f / %.4f\n",
-                what, off_e.translation_rmse, off_e.rotation_rmse_deg, once_e.translation_rmse, once_e.rotation_rmse_deg,
+    std::printf("%s RPE m / deg: deskew off %.4f / %.4f, once %.4f / %.4f, again %.4f / %.4f, undistorted %.4f / %.4f\n", what,
+                off_e.translation_rmse, off_e.rotation_rmse_deg, once_e.translation_rmse, once_e.rotation_rmse_deg,
                 on_e.translation_rmse, on_e.rotation_rmse_deg, ideal_e.translation_rmse, ideal_e.rotation_rmse_deg);
   // Measured (odometry; trajectory): off 0.163 m / 0.658 deg; 0.129 / 0.711. Deskewed once 0.033 /
   // 0.125; 0.033 / 0.121. Again once the next sweep is registered 0.040 / 0.118; 0.029 / 0.123.

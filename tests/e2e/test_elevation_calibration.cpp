@@ -29,9 +29,7 @@ TEST(ElevationCalibration, TextRoundTripAndErrorsNameTheLine) {
     try {
       ElevationCalibration::parse(std::string("# ok\n") + bad, "cal.txt");
       ADD_FAILURE() << "accepted: " << bad;
-    } catch (const Error& e) {
-      EXPECT_NE(std::string(e.what()).find("cal.txt: line 2"), std::string::npos) << e.what();
-    }
+    } catch (const Error& e) { EXPECT_NE(std::string(e.what()).find("cal.txt: line 2"), std::string::npos) << e.what(); }
   }
   EXPECT_THROW(ElevationCalibration::load("/nonexistent/cal.txt"), Error);
 }
@@ -43,7 +41,7 @@ TEST(ElevationCalibration, CorrectionTurnsPointsUpByTheirBinsOffsetKeepingRangeA
   cloud.points.emplace_back(40.0 * std::cos(el) * std::cos(az), 40.0 * std::cos(el) * std::sin(az), 40.0 * std::sin(el));
   cloud.points.emplace_back(10.f, 0.f, 1.f);  // another bin: untouched
   const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
-  cloud.points.emplace_back(inf, 0.f, nan);  // raw scans hold such points: no bin
+  cloud.points.emplace_back(inf, 0.f, nan);   // raw scans hold such points: no bin
   cloud.points.emplace_back(0.f, 0.f, -3.f);  // on the axis: no elevation
   const PointCloud before = cloud;
   c.correct(cloud);
@@ -110,8 +108,8 @@ TEST(ElevationCalibration, WallsLevelATrajectoryThatPitchesAsItGoes) {
     scans[k].T_world_sensor = truth[k];
     scans[k].T_world_sensor.linear() = drift * truth[k].linear();
     if (k > 0)  // positions follow the drifting orientations, as they do in a run
-      scans[k].T_world_sensor.translation() = scans[k - 1].T_world_sensor.translation() +
-          drift * (truth[k].translation() - truth[k - 1].translation());
+      scans[k].T_world_sensor.translation() =
+          scans[k - 1].T_world_sensor.translation() + drift * (truth[k].translation() - truth[k - 1].translation());
   }
   // Between the sensor's "up" and the true one (the first pose may stand on a slope: levelling
   // answers to the walls, i.e. to the world's vertical).
@@ -187,14 +185,17 @@ TEST(ElevationCalibration, CliCalibratesFromARunAndMapsWithTheFile) {
   ASSERT_EQ(c.code, 0) << c.err;
   EXPECT_NE(c.err.find("Wrote " + cal), std::string::npos) << c.err;
   EXPECT_NO_THROW(ElevationCalibration::load(cal));
-  const test::CliRun m = test::run_gcmap("map " + seq + " -o " + (dir / "run2") + " --quiet --no-render --elevation-calibration " + cal);
+  const test::CliRun m =
+      test::run_gcmap("map " + seq + " -o " + (dir / "run2") + " --quiet --no-render --elevation-calibration " + cal);
   EXPECT_EQ(m.code, 0) << m.err;
 
   // A trajectory of another length, a missing calibration file: one line naming the file, exit 2.
-  const test::CliRun wrong = test::run_gcmap("calibrate " + seq + " --max-frames 5 --trajectory " + run + "/trajectory.kitti -o " + cal);
+  const test::CliRun wrong =
+      test::run_gcmap("calibrate " + seq + " --max-frames 5 --trajectory " + run + "/trajectory.kitti -o " + cal);
   EXPECT_EQ(wrong.code, 2);
   EXPECT_NE(wrong.err.find("12 poses for 5 scans"), std::string::npos) << wrong.err;
-  const test::CliRun missing = test::run_gcmap("map " + seq + " -o " + (dir / "run3") + " --elevation-calibration " + (dir / "none.txt"));
+  const test::CliRun missing =
+      test::run_gcmap("map " + seq + " -o " + (dir / "run3") + " --elevation-calibration " + (dir / "none.txt"));
   EXPECT_EQ(missing.code, 2);
   EXPECT_NE(missing.err.find("none.txt: cannot open the elevation calibration"), std::string::npos) << missing.err;
 }

@@ -158,7 +158,8 @@ TEST(RealisticRoutes, SecondRouteLocalizesGloballyAndAgainAfterFiftyDroppedScans
   p.finish();
   auto prior = std::make_shared<PriorMap>();
   prior->submaps = p.submaps();
-  for (const Submap& s : p.submaps()) prior->T_map_submap.push_back(p.mapper().output_from_world() * p.mapper().submap_pose(s.id));
+  for (const Submap& s : p.submaps())
+    prior->T_map_submap.push_back(p.mapper().output_from_world() * p.mapper().submap_pose(s.id));
 
   sc.route = 1;
   const sim::Simulator route1(sc);
@@ -180,9 +181,10 @@ TEST(RealisticRoutes, SecondRouteLocalizesGloballyAndAgainAfterFiftyDroppedScans
   // The map's frame is its estimate of route 0's first pose; aligned, what is left is the
   // localization's own error plus the map's (3.6 cm ATE on route 0).
   const AbsoluteError ate = absolute_trajectory_error(gt, est);
-  std::printf("realistic route 1 on route 0's map: first fix at frame %d, again at %d after the gap, %d frames lost "
-              "after the first fix, ATE %.4f m rmse, %.4f m max\n",
-              first_fix, back_after_gap, lost_after_first_fix, ate.rmse, ate.max);
+  std::printf(
+      "realistic route 1 on route 0's map: first fix at frame %d, again at %d after the gap, %d frames lost "
+      "after the first fix, ATE %.4f m rmse, %.4f m max\n",
+      first_fix, back_after_gap, lost_after_first_fix, ate.rmse, ate.max);
   EXPECT_LE(first_fix, 2);
   EXPECT_LE(back_after_gap, 112);
   EXPECT_LE(lost_after_first_fix, 2);  // right after the gap: no motion known, no dead reckoning

@@ -111,8 +111,8 @@ TEST_F(LoopScenario, ShiftedTukeyLoopNeutralizesAPlantedFalseLoopAndLetsGoOfATru
   const LoopConfig config;
   const Values reference = optimize(nullptr);
   // A false loop 30 m and 90 degrees off is grossly wrong: zero weight, the poses do not move.
-  const Eigen::Isometry3d wrong = relative(frames[0], frames[2]) * yaw_rotation(M_PI / 2) *
-                                  Eigen::Isometry3d(Eigen::Translation3d(30.0, 0.0, 0.0));
+  const Eigen::Isometry3d wrong =
+      relative(frames[0], frames[2]) * yaw_rotation(M_PI / 2) * Eigen::Isometry3d(Eigen::Translation3d(30.0, 0.0, 0.0));
   auto false_loop = make_loop_factor(0, 2, wrong, config);
   const Values with_false = optimize(false_loop);
   EXPECT_EQ(false_loop->weight(), 0.0);
@@ -173,7 +173,6 @@ TEST_F(LoopScenario, MapperBridgesAGapOfDroppedScans) {
   EXPECT_LT(absolute_trajectory_error(truth, est).rmse, 0.05);
 }
 
-
 TEST_F(LoopScenario, ExplicitLoopUndoesDriftInjectedAtAGap) {
   // 50 scans are lost (frames 25-74, 57 m around a corner) and the odometry across the gap is off
   // by a 10 degree yaw about the gap's start plus 2 m. With a 35 m range the submaps after the gap
@@ -185,7 +184,8 @@ TEST_F(LoopScenario, ExplicitLoopUndoesDriftInjectedAtAGap) {
   const auto lost = [](int f) { return f >= 25 && f < 75; };
   std::vector<std::shared_ptr<const PointCloud>> clouds(simulator->num_frames());
   tbb::parallel_for(size_t{0}, clouds.size(), [&](size_t f) {
-    if (!lost(static_cast<int>(f))) clouds[f] = std::make_shared<const PointCloud>(preprocess_scan(simulator->scan(f), cfg.preprocess));
+    if (!lost(static_cast<int>(f)))
+      clouds[f] = std::make_shared<const PointCloud>(preprocess_scan(simulator->scan(f), cfg.preprocess));
   });
   const Eigen::Vector3d pivot = relative(0, 24).translation();
   struct Outcome {
@@ -199,7 +199,8 @@ TEST_F(LoopScenario, ExplicitLoopUndoesDriftInjectedAtAGap) {
     Mapper mapper(cfg);
     const Eigen::Isometry3d drift = Eigen::Translation3d(pivot + Eigen::Vector3d(drift_m, 0, 0)) *
                                     yaw_rotation(drift_deg * M_PI / 180.0) * Eigen::Translation3d(-pivot);
-    for (int f = 0; f < static_cast<int>(clouds.size()); ++f) mapper.add_frame(f, clouds[f], f < 25 ? relative(0, f) : drift * relative(0, f));
+    for (int f = 0; f < static_cast<int>(clouds.size()); ++f)
+      mapper.add_frame(f, clouds[f], f < 25 ? relative(0, f) : drift * relative(0, f));
     mapper.finish();
     // The lost frames only have the drifted odometry: the frames with scans are judged.
     const Poses all = mapper.trajectory();

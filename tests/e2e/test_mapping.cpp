@@ -72,7 +72,8 @@ TEST_F(SmallScenario, GlobalMappingIsAccurateAndClosesTheLoop) {
   EXPECT_NE(graph.find("\"type\":\"matching_cost\""), std::string::npos);
   EXPECT_NE(graph.find("\"loop_candidates\":["), std::string::npos);
   EXPECT_EQ(graph.back(), '\n');
-  for (const char* f : {"stats.json", "config.yaml", "odometry.kitti"}) EXPECT_TRUE(std::filesystem::exists(*dir / ("out/" + std::string(f))));
+  for (const char* f : {"stats.json", "config.yaml", "odometry.kitti"})
+    EXPECT_TRUE(std::filesystem::exists(*dir / ("out/" + std::string(f))));
   EXPECT_NE(slurp(*dir / "out/stats.json").find("\"global_optimization\":{\"mean_ms\":"), std::string::npos);
   EXPECT_NE(slurp(*dir / "out/stats.json").find("\"final_optimization_ms\":"), std::string::npos);
 }
@@ -166,8 +167,7 @@ TEST_F(SmallScenario, SameInputGivesByteIdenticalOutputs) {
   // fixed order whatever the thread count.
   const std::string args = "map " + (*dir / "sim") + " --quiet --max-frames 60 -o ";
   std::string err;
-  for (const char* run_name : {"det_a", "det_b"})
-    ASSERT_EQ(run(args + (*dir / run_name) + " --threads 2", &err), 0) << err;
+  for (const char* run_name : {"det_a", "det_b"}) ASSERT_EQ(run(args + (*dir / run_name) + " --threads 2", &err), 0) << err;
   ASSERT_EQ(run(args + (*dir / "det_1") + " --threads 1", &err), 0) << err;
   auto a = output_files(*dir / "det_a"), b = output_files(*dir / "det_b"), one = output_files(*dir / "det_1");
   for (auto* files : {&a, &b, &one}) ASSERT_EQ(files->erase("stats.json"), 1u);
@@ -239,9 +239,7 @@ TEST(Mapping, ConfigRoundTripsThroughYaml) {
   try {
     bad.validate();
     ADD_FAILURE() << "local.factor_source_points -1 accepted";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("local.factor_source_points"), std::string::npos) << e.what();
-  }
+  } catch (const Error& e) { EXPECT_NE(std::string(e.what()).find("local.factor_source_points"), std::string::npos) << e.what(); }
 }
 
 TEST(Mapping, Kitti00OdometryAgreesWithScanToScanGicp) {
@@ -298,7 +296,8 @@ TEST(Mapping, Kitti00SessionReloadsAndLocalizesItsOwnScans) {
   for (size_t f = 0; f < mapped.size(); ++f) EXPECT_LT(test::translation_error(session.trajectory[f], mapped[f]), 1e-6);
   EXPECT_GE(session.submaps.size(), 1u);
 
-  ASSERT_EQ(run("localize --map " + (dir / "out") + " " + seq + " -o " + (dir / "loc") + " --global-init --start 4 --quiet", &err), 0)
+  ASSERT_EQ(
+      run("localize --map " + (dir / "out") + " " + seq + " -o " + (dir / "loc") + " --global-init --start 4 --quiet", &err), 0)
       << err;
   const Poses localized = read_trajectory(dir / "loc/trajectory.kitti").poses;
   ASSERT_EQ(localized.size(), 12u);

@@ -68,8 +68,10 @@ class MergeOfSmallRoutes : public ::testing::Test {
     const std::vector<Eigen::Isometry3d>& own = drive(k).session.trajectory;
     for (size_t f = 0; f < r.trajectories[session].size(); ++f) {
       const Eigen::Isometry3d own_truth = drive(k).poses_world[0].inverse() * drive(k).poses_world[f];
-      t = std::max(t, test::translation_error(r.trajectories[session][f], truth(k, f)) - test::translation_error(own[f], own_truth));
-      a = std::max(a, test::rotation_error_deg(r.trajectories[session][f], truth(k, f)) - test::rotation_error_deg(own[f], own_truth));
+      t = std::max(t,
+                   test::translation_error(r.trajectories[session][f], truth(k, f)) - test::translation_error(own[f], own_truth));
+      a = std::max(
+          a, test::rotation_error_deg(r.trajectories[session][f], truth(k, f)) - test::rotation_error_deg(own[f], own_truth));
     }
     return {t, a};
   }
@@ -84,7 +86,8 @@ TEST_F(MergeOfSmallRoutes, TwoRoutesAreJoinedAtTheirTrueRelativePose) {
   // The placement of B's first frame, and every frame of both drives after the joint optimization.
   const double t = test::translation_error(r.trajectories[1][0], truth(1, 0));
   const double a = test::rotation_error_deg(r.trajectories[1][0], truth(1, 0));
-  std::printf("[ merge    ] B's first pose vs ground truth: %.4f m, %.4f deg; %zu cross-session factors\n", t, a, r.cross_factors);
+  std::printf("[ merge    ] B's first pose vs ground truth: %.4f m, %.4f deg; %zu cross-session factors\n", t, a,
+              r.cross_factors);
   EXPECT_LT(t, 0.05);
   EXPECT_LT(a, 0.05);
   for (int k : {0, 1}) {
@@ -126,19 +129,20 @@ TEST_F(MergeOfSmallRoutes, TheMergedMapIsSharperThanTheBestSingleAlignment) {
   const std::vector<Eigen::Isometry3d> merged_b(r.T_merged_submap.begin() + r.first_submap[1], r.T_merged_submap.end());
   const double merged = entropy_of_both(a, b, merged_a, merged_b);
   const double own_a = entropy_of_both(a, Session{}, a.T_world_submap, {});
-  std::printf("[ merge    ] mean map entropy: A alone %.4f, A and B by the best single alignment %.4f, merged %.4f\n", own_a, single, merged);
+  std::printf("[ merge    ] mean map entropy: A alone %.4f, A and B by the best single alignment %.4f, merged %.4f\n", own_a,
+              single, merged);
   EXPECT_LT(merged, single);
 }
 
 TEST_F(MergeOfSmallRoutes, ThreeSessionsInOneCallAndAnotherWorldLeftUnconnected) {
-  const MergeResult r = merge_sessions({input(drive(0), "A"), input(drive(3), "D"), input(drive(1), "B"), input(drive(2), "C")},
-                                       MappingConfig{});
+  const MergeResult r =
+      merge_sessions({input(drive(0), "A"), input(drive(3), "D"), input(drive(1), "B"), input(drive(2), "C")}, MappingConfig{});
   EXPECT_TRUE(r.connected[0] && r.connected[2] && r.connected[3]);
   EXPECT_FALSE(r.connected[1]);  // seed 2's houses: no verified place with the others
   EXPECT_TRUE(r.trajectories[1].empty());
   EXPECT_EQ(r.first_submap[1], -1);
-  EXPECT_EQ(r.T_merged_submap.size(), drive(0).session.submaps.size() + drive(1).session.submaps.size() +
-                                          drive(2).session.submaps.size());
+  EXPECT_EQ(r.T_merged_submap.size(),
+            drive(0).session.submaps.size() + drive(1).session.submaps.size() + drive(2).session.submaps.size());
   for (auto [session, k] : {std::pair{2, 1}, {3, 2}}) {
     const auto [t, a] = trajectory_error(r, session, k);
     std::printf("[ merge    ] drive %d of three, worst frame: %.4f m, %.4f deg more than in its own session\n", k, t, a);
@@ -154,9 +158,7 @@ TEST_F(MergeOfSmallRoutes, MisuseIsAnErrorNamingTheSession) {
   try {
     merge_sessions({input(drive(0), "A"), bare}, MappingConfig{});
     ADD_FAILURE() << "a session without descriptors cannot be placed";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("bare: "), std::string::npos) << e.what();
-  }
+  } catch (const Error& e) { EXPECT_NE(std::string(e.what()).find("bare: "), std::string::npos) << e.what(); }
   MappingConfig bad;
   bad.merge.max_verifications = 0;
   EXPECT_THROW(merge_sessions({input(drive(0), "A"), input(drive(1), "B")}, bad), Error);
@@ -197,7 +199,8 @@ TEST(RealisticMerge, RoutesOfOneWorldJoinWhereTheyOverlapAndAnotherWorldStaysApa
   for (const Eigen::Isometry3d& T : b.session.T_world_submap) placed.push_back(T_a_b * T);
   const auto first_b = r.T_merged_submap.begin() + r.first_submap[2];
   const double single = entropy_of_both(a.session, b.session, a.session.T_world_submap, placed);
-  const double merged = entropy_of_both(a.session, b.session, {r.T_merged_submap.begin(), first_b}, {first_b, r.T_merged_submap.end()});
+  const double merged =
+      entropy_of_both(a.session, b.session, {r.T_merged_submap.begin(), first_b}, {first_b, r.T_merged_submap.end()});
   std::printf("[ merge    ] realistic, mean map entropy: by the best single alignment %.4f, merged %.4f\n", single, merged);
   EXPECT_LT(merged, single);
 }

@@ -189,9 +189,7 @@ TEST_F(SmallDrive, BadScansAreUnusableFramesAndMisuseIsAnError) {
   try {
     MappingPipeline p(bad);
     ADD_FAILURE() << "an impossible config must be refused";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("local.th_min"), std::string::npos) << e.what();
-  }
+  } catch (const Error& e) { EXPECT_NE(std::string(e.what()).find("local.th_min"), std::string::npos) << e.what(); }
 }
 
 // The sweep of frame f as a sensor moving from pose f to pose f+1 during 0.1 s would record it:
@@ -223,7 +221,8 @@ TEST_F(SmallDrive, PerPointTimesDeskewSweepsDistortedByMotion) {
     for (size_t k = 0; k < frames; ++k) {
       const size_t f = k < rest ? 0 : k - rest + 1;
       std::vector<float> times;
-      PointCloud sweep = distorted(scan(f), k + 1 < rest ? Eigen::Isometry3d::Identity() : truth(f).inverse() * truth(f + 1), &times);
+      PointCloud sweep =
+          distorted(scan(f), k + 1 < rest ? Eigen::Isometry3d::Identity() : truth(f).inverse() * truth(f + 1), &times);
       if (with_times) sweep.times = std::move(times);
       deskewed += pipeline.add_scan(std::move(sweep), 0.1 * k).deskewed;
       gt.push_back(truth(f));

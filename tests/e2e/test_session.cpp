@@ -106,9 +106,7 @@ TEST_F(SessionRoundTrip, DamagedOrNewerSessionsAreRefusedWithTheFileNamed) {
     try {
       read_session(cut);
       ADD_FAILURE() << "a truncated submaps.bin (" << len << " bytes) must be refused";
-    } catch (const Error& e) {
-      EXPECT_NE(std::string(e.what()).find("submaps.bin"), std::string::npos) << e.what();
-    }
+    } catch (const Error& e) { EXPECT_NE(std::string(e.what()).find("submaps.bin"), std::string::npos) << e.what(); }
   }
   // A point count that would need gigabytes is checked against the file before allocating.
   std::ofstream(cut + "/submaps.bin", std::ios::binary | std::ios::trunc).write(bin.data(), 12);
@@ -140,8 +138,7 @@ TEST_F(SessionRoundTrip, AWriterKilledAtAnyMomentLeavesAWholeSession) {
     if (child == 0) {
       try {
         for (;;) write_session(target, after);
-      } catch (...) {
-      }
+      } catch (...) {}
       _exit(3);
     }
     if (delay_us >= 0) std::this_thread::sleep_for(std::chrono::microseconds(delay_us));

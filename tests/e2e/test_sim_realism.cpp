@@ -48,7 +48,7 @@ TEST(SimRealism, CityIsAKittiScaleDriveWithStopsSlopesAndRevisits) {
   }
   EXPECT_LE(max_speed, 15.0 + 1e-6);
   EXPECT_GT(max_speed, 12.0);
-  EXPECT_GT(stationary, 50u);  // stops at intersections
+  EXPECT_GT(stationary, 50u);     // stops at intersections
   EXPECT_GT(z_max - z_min, 8.0);  // slopes
   // Revisits more than 2 km of driving apart, within a few metres, in both directions.
   bool same = false, opposite = false;
@@ -196,7 +196,8 @@ TEST(SimRealism, LabelsMarkExactlyThePointsOnMovingObjects) {
       auto inside = [&](size_t m) {
         const sim::MoverState st = s.traffic().state(m, frame * 0.1 + t, s.world());
         const Eigen::Vector3d q = w - st.center.cast<double>();
-        const Eigen::Vector3d l(std::cos(st.yaw) * q.x() + std::sin(st.yaw) * q.y(), -std::sin(st.yaw) * q.x() + std::cos(st.yaw) * q.y(), q.z());
+        const Eigen::Vector3d l(std::cos(st.yaw) * q.x() + std::sin(st.yaw) * q.y(),
+                                -std::sin(st.yaw) * q.x() + std::cos(st.yaw) * q.y(), q.z());
         return (s.traffic().mover(m).half.cast<double>() - l.cwiseAbs()).minCoeff();
       };
       const uint32_t cls = scan.labels[i] & 0xffff, instance = scan.labels[i] >> 16;
@@ -235,7 +236,8 @@ TEST(SimRealism, SolidStateAndHighResolutionSensors) {
     std::set<int> s;
     for (const auto& p : c.points) {
       const Eigen::Vector3f d = p.normalized();
-      s.insert(static_cast<int>(std::floor(std::atan2(d.y(), d.x()) * 300)) * 10000 + static_cast<int>(std::floor(std::asin(d.z()) * 300)));
+      s.insert(static_cast<int>(std::floor(std::atan2(d.y(), d.x()) * 300)) * 10000 +
+               static_cast<int>(std::floor(std::asin(d.z()) * 300)));
     }
     return s;
   };

@@ -35,12 +35,12 @@ std::string find_chromium() {
 
 // Runs Chromium headless on `page` (bounded by `timeout 60`); stdout and stderr go to files in
 // `dir`. Software WebGL (SwiftShader) stands in for a GPU; root needs --no-sandbox.
-int run_chromium(const std::string& chromium, const test::TempDir& dir, const std::string& page,
-                 const std::string& action, const std::string& name) {
+int run_chromium(const std::string& chromium, const test::TempDir& dir, const std::string& page, const std::string& action,
+                 const std::string& name) {
   const std::string cmd = "timeout 60 '" + chromium + "' --headless --no-sandbox --disable-gpu --use-angle=swiftshader" +
-                          " --enable-unsafe-swiftshader --enable-logging=stderr --v=0 --no-first-run" +
-                          " --user-data-dir='" + dir / "profile" + "' --window-size=800,600 " + action +
-                          " 'file://" + page + "' > '" + dir / (name + ".out") + "' 2> '" + dir / (name + ".log") + "'";
+                          " --enable-unsafe-swiftshader --enable-logging=stderr --v=0 --no-first-run" + " --user-data-dir='" +
+                          dir / "profile" + "' --window-size=800,600 " + action + " 'file://" + page + "' > '" +
+                          dir / (name + ".out") + "' 2> '" + dir / (name + ".log") + "'";
   return std::system(cmd.c_str());
 }
 
@@ -49,8 +49,7 @@ std::vector<std::string> console_lines(const std::string& log) {
   std::vector<std::string> lines;
   std::stringstream in(log);
   for (std::string line; std::getline(in, line);)
-    if (line.find(":CONSOLE") != std::string::npos && line.find("GL Driver Message") == std::string::npos)
-      lines.push_back(line);
+    if (line.find(":CONSOLE") != std::string::npos && line.find("GL Driver Message") == std::string::npos) lines.push_back(line);
   return lines;
 }
 

@@ -22,11 +22,11 @@ constexpr double kDeg = M_PI / 180.0;
 constexpr double kBin = 0.1 * kDeg, kLowest = -45.05 * kDeg;
 constexpr int kBins = 901;
 constexpr double kMaxOffset = 2.0 * kDeg;
-constexpr double kHuber = 3.0;       // on the whitened point-to-plane distance
-constexpr double kMinNormalZ = 0.9;  // level ground only (within 26 deg)
-constexpr double kMaxWallNormalZ = 0.3;      // steep surfaces for levelling (within 17 deg of vertical)
-constexpr double kWallPrior = 100.0;         // points' worth of "no tilt" in the levelling
-constexpr int kLevelIterations = 3;         // Gauss-Newton steps: a run may stand degrees off the vertical
+constexpr double kHuber = 3.0;           // on the whitened point-to-plane distance
+constexpr double kMinNormalZ = 0.9;      // level ground only (within 26 deg)
+constexpr double kMaxWallNormalZ = 0.3;  // steep surfaces for levelling (within 17 deg of vertical)
+constexpr double kWallPrior = 100.0;     // points' worth of "no tilt" in the levelling
+constexpr int kLevelIterations = 3;      // Gauss-Newton steps: a run may stand degrees off the vertical
 
 int bin_of(double elevation) {
   if (!std::isfinite(elevation)) return -1;  // raw scans may hold NaN or infinite points
@@ -250,8 +250,7 @@ ElevationCalibration ElevationCalibration::estimate(const std::vector<Calibratio
                                                     const CalibrationEstimate& options) {
   ElevationCalibration c;
   const Corrected corrected = [&c](const CalibrationScan& s, size_t i) {
-    return s.bins[i] >= 0 && c.offset_[s.bins[i]] != 0.0 ? raised(s.cloud.points[i], c.offset_[s.bins[i]])
-                                                         : s.cloud.points[i];
+    return s.bins[i] >= 0 && c.offset_[s.bins[i]] != 0.0 ? raised(s.cloud.points[i], c.offset_[s.bins[i]]) : s.cloud.points[i];
   };
   for (int it = 0; it < options.iterations; ++it) {
     const BinSums sums = world_sums(scans, corrected, options);

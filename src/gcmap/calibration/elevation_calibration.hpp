@@ -24,10 +24,10 @@ struct CalibrationScan {
 };
 
 struct CalibrationEstimate {
-  double near_range = 15.0;     // m: points closer than this make the reference ground
+  double near_range = 15.0;  // m: points closer than this make the reference ground
   double voxel_resolution = 0.5;
   int iterations = 3;
-  int min_points = 200;         // level-ground points a bin needs for an offset
+  int min_points = 200;  // level-ground points a bin needs for an offset
 };
 
 // Removes a trajectory's slow roll and pitch drift, such as these very errors cause: walls, poles

@@ -39,8 +39,7 @@ constexpr double kMaxTableStep = 5e-4;  // rad between neighbouring poses of the
 void deskew(PointCloud& cloud, const Vector6d& velocity, const Vector6d& acceleration, double anchor) {
   if (!cloud.has_times()) return;
   if (cloud.times.size() != cloud.size()) throw Error("deskew: times and points differ in number");
-  if (!velocity.allFinite() || !acceleration.allFinite() || !std::isfinite(anchor))
-    throw Error("deskew: non-finite velocity");
+  if (!velocity.allFinite() || !acceleration.allFinite() || !std::isfinite(anchor)) throw Error("deskew: non-finite velocity");
   const bool covs = cloud.has_covs();
   const auto T_anchor = [&](double t) {
     const double u = t - anchor;

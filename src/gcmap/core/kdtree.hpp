@@ -29,7 +29,9 @@ class KdTree {
     size_t kdtree_get_point_count() const { return points.size(); }
     float kdtree_get_pt(size_t i, size_t dim) const { return points[i][dim]; }
     template <class BBox>
-    bool kdtree_get_bbox(BBox&) const { return false; }
+    bool kdtree_get_bbox(BBox&) const {
+      return false;
+    }
   };
   using Index = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Adaptor>, Adaptor, 3, uint32_t>;
 

@@ -115,7 +115,9 @@ PointCloud voxel_downsample(const PointCloud& cloud, double resolution) {
         }
         return e;
       },
-      [](const Extremes& a, const Extremes& b) { return Extremes{a.first.cwiseMin(b.first), a.second.cwiseMax(b.second)}; });
+      [](const Extremes& a, const Extremes& b) {
+        return Extremes{a.first.cwiseMin(b.first), a.second.cwiseMax(b.second)};
+      });
   std::array<int64_t, 6> box;
   for (int k = 0; k < 3; ++k) {
     box[k] = coord(ext.first[k]);

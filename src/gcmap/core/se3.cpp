@@ -15,8 +15,7 @@ Eigen::Matrix3d so3_exp(const Eigen::Vector3d& omega) {
   const Eigen::Matrix3d W = skew(omega);
   if (theta2 < 1e-12) return Eigen::Matrix3d::Identity() + W + 0.5 * W * W;
   const double theta = std::sqrt(theta2);
-  return Eigen::Matrix3d::Identity() + (std::sin(theta) / theta) * W +
-         ((1.0 - std::cos(theta)) / theta2) * W * W;
+  return Eigen::Matrix3d::Identity() + (std::sin(theta) / theta) * W + ((1.0 - std::cos(theta)) / theta2) * W * W;
 }
 
 Eigen::Vector3d so3_log(const Eigen::Matrix3d& R) {

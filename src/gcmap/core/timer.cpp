@@ -20,8 +20,6 @@ double TimingStats::stddev() const {
   return std::sqrt(s / samples_ms.size());
 }
 
-double TimingStats::max() const {
-  return samples_ms.empty() ? 0.0 : *std::max_element(samples_ms.begin(), samples_ms.end());
-}
+double TimingStats::max() const { return samples_ms.empty() ? 0.0 : *std::max_element(samples_ms.begin(), samples_ms.end()); }
 
 }  // namespace gcmap

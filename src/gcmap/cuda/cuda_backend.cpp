@@ -242,20 +242,21 @@ void CudaBackend::linearize(std::span<Factor* const> factors, std::span<const Fa
   std::vector<Eigen::Isometry3d> T;
   impl_->upload_poses(poses, on_device, &T);
   impl_->sums.resize(device::kSums * on_device.size());
-  tbb::parallel_for(size_t{0}, on_host.size(), [&](size_t k) { factors[on_host[k]]->linearize(poses[on_host[k]].data(), out[on_host[k]]); });
+  tbb::parallel_for(size_t{0}, on_host.size(),
+                    [&](size_t k) { factors[on_host[k]]->linearize(poses[on_host[k]].data(), out[on_host[k]]); });
   impl_->batch.linearize(impl_->poses.data(), impl_->sums.data());
   tbb::parallel_for(size_t{0}, on_device.size(), [&](size_t k) {
     to_factor_linearization(expand_to_both_poses(unpack(impl_->sums.data() + device::kSums * k), T[k]), out[on_device[k]]);
   });
 }
 
-void CudaBackend::trial_errors(std::span<Factor* const> factors, std::span<const FactorPoses> poses,
-                               std::span<double> out) {
+void CudaBackend::trial_errors(std::span<Factor* const> factors, std::span<const FactorPoses> poses, std::span<double> out) {
   std::vector<size_t> on_device, on_host;
   impl_->prepare(factors, on_device, on_host);
   impl_->upload_poses(poses, on_device, nullptr);
   impl_->sums.resize(2 * on_device.size());
-  tbb::parallel_for(size_t{0}, on_host.size(), [&](size_t k) { out[on_host[k]] = factors[on_host[k]]->trial_error(poses[on_host[k]].data()); });
+  tbb::parallel_for(size_t{0}, on_host.size(),
+                    [&](size_t k) { out[on_host[k]] = factors[on_host[k]]->trial_error(poses[on_host[k]].data()); });
   impl_->batch.trial_errors(impl_->poses.data(), impl_->sums.data());
   for (size_t k = 0; k < on_device.size(); ++k) out[on_device[k]] = impl_->sums[2 * k];
 }
@@ -282,7 +283,8 @@ void CudaBackend::overlaps(const std::shared_ptr<const PointCloud>& source,
 
 RegistrationResult CudaBackend::align(const PointCloud& source, const std::shared_ptr<const GaussianVoxelMap>& target,
                                       const Eigen::Isometry3d& init_T_target_source, const RegistrationConfig& config) {
-  if (source.empty() || target->num_voxels() == 0) return LinearizationBackend::align(source, target, init_T_target_source, config);
+  if (source.empty() || target->num_voxels() == 0)
+    return LinearizationBackend::align(source, target, init_T_target_source, config);
   std::lock_guard lock(impl_->registration_mutex);
   Impl::Registration& r = impl_->registration;
   device::free_cloud(r.source);

@@ -25,10 +25,8 @@ class CudaBackend : public LinearizationBackend {
 
   void linearize(std::span<Factor* const> factors, std::span<const FactorPoses> poses,
                  std::span<FactorLinearization> out) override;
-  void trial_errors(std::span<Factor* const> factors, std::span<const FactorPoses> poses,
-                    std::span<double> out) override;
-  void overlaps(const std::shared_ptr<const PointCloud>& source,
-                std::span<const std::shared_ptr<const GaussianVoxelMap>> targets,
+  void trial_errors(std::span<Factor* const> factors, std::span<const FactorPoses> poses, std::span<double> out) override;
+  void overlaps(const std::shared_ptr<const PointCloud>& source, std::span<const std::shared_ptr<const GaussianVoxelMap>> targets,
                 std::span<const Eigen::Isometry3d> T_target_source, std::span<double> out) override;
   RegistrationResult align(const PointCloud& source, const std::shared_ptr<const GaussianVoxelMap>& target,
                            const Eigen::Isometry3d& init_T_target_source, const RegistrationConfig& config) override;

@@ -152,7 +152,8 @@ __device__ __forceinline__ void accumulate(float3 q, float3 e, const Sym3& w, Su
 }
 
 // The block's pair, and its pose staged in shared memory for all threads.
-__device__ __forceinline__ PairView block_pair_and_pose(const PairView* pairs, const int32_t* block_pair, const float* poses, float* T) {
+__device__ __forceinline__ PairView block_pair_and_pose(const PairView* pairs, const int32_t* block_pair, const float* poses,
+                                                        float* T) {
   const int pair = block_pair[blockIdx.x];
   if (threadIdx.x < 12) T[threadIdx.x] = poses[12 * pair + threadIdx.x];
   __syncthreads();
@@ -192,7 +193,8 @@ __global__ void pair_sums_kernel(const uint32_t* pair_first_block, const float* 
   const int k = threadIdx.x;
   if (k >= width) return;
   double acc = 0.0;
-  for (uint32_t b = pair_first_block[pair]; b < pair_first_block[pair + 1]; ++b) acc += block_sums[static_cast<size_t>(b) * width + k];
+  for (uint32_t b = pair_first_block[pair]; b < pair_first_block[pair + 1]; ++b)
+    acc += block_sums[static_cast<size_t>(b) * width + k];
   out[static_cast<size_t>(pair) * width + k] = acc;
 }
 
@@ -460,8 +462,8 @@ VoxelMap upload_voxel_map(const int32_t* coords, const float* xyz, const float* 
       return failed == 0;
     });
     if (slots == 0)
-      throw Error("voxel table: " + std::to_string(n) + " voxels do not fit in " + std::to_string(max_slots) +
-                  " slots within " + std::to_string(kMaxProbes) + " probes");
+      throw Error("voxel table: " + std::to_string(n) + " voxels do not fit in " + std::to_string(max_slots) + " slots within " +
+                  std::to_string(kMaxProbes) + " probes");
   } catch (...) {
     device_free(d_coords);
     device_free(d_failed);

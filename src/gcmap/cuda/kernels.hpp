@@ -34,8 +34,8 @@ struct VoxelMap {
 };
 // Uploads the voxels and builds the table on the device: starts at load <= 1/2 and doubles while an
 // insertion runs out of probes, up to max_slots; throws there.
-VoxelMap upload_voxel_map(const int32_t* coords, const float* xyz, const float* cov6, uint32_t n,
-                          float inv_resolution, uint32_t max_slots);
+VoxelMap upload_voxel_map(const int32_t* coords, const float* xyz, const float* cov6, uint32_t n, float inv_resolution,
+                          uint32_t max_slots);
 void free_voxel_map(VoxelMap& m);
 
 // Per factor sums in the target frame, in this order: H_rr upper (6), H_rt row-major (9), H_tt
@@ -66,7 +66,7 @@ class Batch {
  private:
   void release();
   size_t num_pairs_ = 0, num_points_ = 0, num_blocks_ = 0, device_bytes_ = 0;
-  void* pairs_ = nullptr;        // device PairView[num_pairs]
+  void* pairs_ = nullptr;  // device PairView[num_pairs]
   int32_t* block_pair_ = nullptr;
   uint32_t* block_begin_ = nullptr;
   uint32_t* pair_first_block_ = nullptr;  // num_pairs + 1

@@ -35,8 +35,7 @@ GCMAP_HD uint32_t voxel_slot_hash(int32_t x, int32_t y, int32_t z) {
 // Claims a slot for a coordinate known to be absent (the map's voxels are unique), with
 // `claim(slot_index_field) -> bool` doing the compare-and-swap of -1 to `index`.
 template <class Claim>
-GCMAP_HD bool voxel_table_insert(VoxelSlot* slots, uint32_t mask, int32_t x, int32_t y, int32_t z, int32_t index,
-                                 Claim claim) {
+GCMAP_HD bool voxel_table_insert(VoxelSlot* slots, uint32_t mask, int32_t x, int32_t y, int32_t z, int32_t index, Claim claim) {
   uint32_t s = voxel_slot_hash(x, y, z) & mask;
   for (int probe = 0; probe < kMaxProbes; ++probe) {
     if (claim(&slots[s].index, index)) {

@@ -26,9 +26,9 @@ struct CellGrid {
   double cell = 0.0;
   int reach = 0;  // cells per radius
   Eigen::Vector3d origin;
-  std::vector<uint64_t> cell_keys;  // sorted, unique
-  std::vector<uint32_t> cell_begin; // size cell_keys.size() + 1, indices into x, y, z
-  std::vector<float> x, y, z;       // points in cell order, relative to origin (SoA for the inner loop)
+  std::vector<uint64_t> cell_keys;   // sorted, unique
+  std::vector<uint32_t> cell_begin;  // size cell_keys.size() + 1, indices into x, y, z
+  std::vector<float> x, y, z;        // points in cell order, relative to origin (SoA for the inner loop)
 
   static uint64_t pack(int64_t cx, int64_t cy, int64_t cz) {
     return (static_cast<uint64_t>(cx) << (2 * kBits)) | (static_cast<uint64_t>(cy) << kBits) | static_cast<uint64_t>(cz);
@@ -98,9 +98,8 @@ struct Moments {
 };
 
 // The moments of the points within the radius of point q. Inlined: the hot loop of `mme`.
-[[gnu::always_inline]] inline Moments moments_around(const CellGrid& grid,
-                                                     const std::vector<std::pair<uint32_t, uint32_t>>& runs, uint32_t q,
-                                                     float r2) {
+[[gnu::always_inline]] inline Moments moments_around(const CellGrid& grid, const std::vector<std::pair<uint32_t, uint32_t>>& runs,
+                                                     uint32_t q, float r2) {
   const float qx = grid.x[q], qy = grid.y[q], qz = grid.z[q];
   // Offsets from the query point are small, so float sums per run lose nothing that matters; runs
   // are combined in double.

@@ -10,8 +10,8 @@ namespace gcmap {
 struct MapEntropy {
   double mean = 0.0;
   double stddev = 0.0;
-  size_t num_points = 0;     // points that contributed
-  size_t num_skipped = 0;    // too few neighbours or degenerate covariance
+  size_t num_points = 0;   // points that contributed
+  size_t num_skipped = 0;  // too few neighbours or degenerate covariance
 };
 // progress(points done, points in all), for a person: from one worker thread at a time.
 using EntropyProgress = std::function<void(size_t done, size_t total)>;

@@ -13,8 +13,8 @@ namespace {
 
 void check_sizes(const Poses& gt, const Poses& est) {
   if (gt.size() != est.size())
-    throw Error("trajectories differ in length: " + std::to_string(gt.size()) + " ground-truth vs " +
-                std::to_string(est.size()) + " estimated poses");
+    throw Error("trajectories differ in length: " + std::to_string(gt.size()) + " ground-truth vs " + std::to_string(est.size()) +
+                " estimated poses");
   if (gt.size() < 2) throw Error("trajectories need at least 2 poses");
 }
 

@@ -15,8 +15,8 @@ struct KittiSegmentError {
   size_t count = 0;
 };
 struct KittiError {
-  double translation_percent = 0.0;     // "Mean ST" translational, %
-  double rotation_deg_per_100m = 0.0;   // rotational, deg / 100 m
+  double translation_percent = 0.0;    // "Mean ST" translational, %
+  double rotation_deg_per_100m = 0.0;  // rotational, deg / 100 m
   size_t num_segments = 0;
   std::vector<KittiSegmentError> per_length;
 };

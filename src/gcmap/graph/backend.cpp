@@ -37,8 +37,7 @@ void CpuBackend::linearize(std::span<Factor* const> factors, std::span<const Fac
   tbb::parallel_for(size_t{0}, factors.size(), [&](size_t f) { factors[f]->linearize(poses[f].data(), out[f]); });
 }
 
-void CpuBackend::trial_errors(std::span<Factor* const> factors, std::span<const FactorPoses> poses,
-                              std::span<double> out) {
+void CpuBackend::trial_errors(std::span<Factor* const> factors, std::span<const FactorPoses> poses, std::span<double> out) {
   tbb::parallel_for(size_t{0}, factors.size(), [&](size_t f) { out[f] = factors[f]->trial_error(poses[f].data()); });
 }
 

@@ -28,8 +28,7 @@ class LinearizationBackend {
   virtual ~LinearizationBackend() = default;
   virtual void linearize(std::span<Factor* const> factors, std::span<const FactorPoses> poses,
                          std::span<FactorLinearization> out) = 0;
-  virtual void trial_errors(std::span<Factor* const> factors, std::span<const FactorPoses> poses,
-                            std::span<double> out) = 0;
+  virtual void trial_errors(std::span<Factor* const> factors, std::span<const FactorPoses> poses, std::span<double> out) = 0;
   // Paper Eq. 8 for one source against many targets: out[k] = overlap(source -> targets[k]) under
   // T_target_source[k]. The default runs on the CPU.
   virtual void overlaps(const std::shared_ptr<const PointCloud>& source,
@@ -51,8 +50,7 @@ class CpuBackend : public LinearizationBackend {
  public:
   void linearize(std::span<Factor* const> factors, std::span<const FactorPoses> poses,
                  std::span<FactorLinearization> out) override;
-  void trial_errors(std::span<Factor* const> factors, std::span<const FactorPoses> poses,
-                    std::span<double> out) override;
+  void trial_errors(std::span<Factor* const> factors, std::span<const FactorPoses> poses, std::span<double> out) override;
   Device device() const override { return Device::cpu; }
   std::string name() const override { return "cpu"; }
 };

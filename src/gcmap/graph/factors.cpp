@@ -36,9 +36,8 @@ void MatchingCostFactor::linearize(const Eigen::Isometry3d* const* poses, Factor
     else kept_points -= n;
   }
   const bool keep = trial_voxels_ == TrialVoxels::kept || counted_ > 0;
-  to_factor_linearization(keep ? linearize_vgicp(*source_, *target_, T_lin_, associations_)
-                               : linearize_vgicp(*source_, *target_, T_lin_),
-                          out);
+  to_factor_linearization(
+      keep ? linearize_vgicp(*source_, *target_, T_lin_, associations_) : linearize_vgicp(*source_, *target_, T_lin_), out);
 }
 
 void to_factor_linearization(const VgicpLinearization& lin, FactorLinearization& out) {
@@ -56,8 +55,8 @@ double MatchingCostFactor::trial_error(const Eigen::Isometry3d* const* poses) co
   return evaluate_vgicp(*source_, *target_, T, T_lin_).error;
 }
 
-RelativePoseFactor::RelativePoseFactor(int key_i, int key_j, const Eigen::Isometry3d& measured,
-                                       const Matrix6d& information, RobustKernel kernel)
+RelativePoseFactor::RelativePoseFactor(int key_i, int key_j, const Eigen::Isometry3d& measured, const Matrix6d& information,
+                                       RobustKernel kernel)
     : measured_(measured), information_(information), kernel_(kernel) {
   keys_ = {key_i, key_j};
 }

@@ -40,7 +40,7 @@ class LazyBackend : public LinearizationBackend {
   std::shared_ptr<LinearizationBackend> inner_;
   double threshold_;
   size_t max_relinearizations_ = 0;
-  std::vector<char> modelled_;  // per factor of the last linearize(): its kept model stands in
+  std::vector<char> modelled_;     // per factor of the last linearize(): its kept model stands in
   std::vector<Vector12d> motion_;  // per factor: its relative-pose change since it was kept
   // Buffers for the subset handed to the inner backend.
   std::vector<size_t> subset_, moved_;

@@ -19,9 +19,9 @@ namespace {
 // Block structure of the system for one optimize() call: variables, lower-triangle blocks and,
 // per factor and key pair, which block receives the factor's Hessian block.
 struct Structure {
-  std::vector<int> keys;              // variable index -> key
-  std::map<int, int> index;           // key -> variable index (free poses only)
-  std::vector<std::pair<int, int>> blocks;  // (row, col), row >= col
+  std::vector<int> keys;                          // variable index -> key
+  std::map<int, int> index;                       // key -> variable index (free poses only)
+  std::vector<std::pair<int, int>> blocks;        // (row, col), row >= col
   std::vector<std::array<int, 4>> factor_blocks;  // [a * 2 + c] -> block, -1 if absent
   std::vector<std::array<int, 2>> factor_vars;    // variable index per key, -1 if fixed/absent
 };
@@ -147,7 +147,8 @@ void assemble(std::span<const FactorLinearization> lin, Pattern& p, Eigen::Vecto
   b.resize(6 * n);
   for (int v = 0; v < n; ++v) {
     Vector6d sum = Vector6d::Zero();
-    for (int t = p.var_first[v]; t < p.var_first[v + 1]; ++t) sum += lin[p.var_terms[t] / 2].b.segment<6>(6 * (p.var_terms[t] % 2));
+    for (int t = p.var_first[v]; t < p.var_first[v + 1]; ++t)
+      sum += lin[p.var_terms[t] / 2].b.segment<6>(6 * (p.var_terms[t] % 2));
     b.segment<6>(6 * v) = sum;
   }
 }
@@ -262,11 +263,13 @@ class LevenbergMarquardt::Iterations {
 };
 
 LevenbergMarquardt::LevenbergMarquardt(LMConfig config, std::shared_ptr<LinearizationBackend> backend)
-    : config_(config), backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
-      solver_(config.linear_solver), lambda_(config.initial_lambda) {}
+    : config_(config),
+      backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
+      solver_(config.linear_solver),
+      lambda_(config.initial_lambda) {}
 
-std::optional<LevenbergMarquardt::Step> LevenbergMarquardt::damped_step(Iterations& it, const Values& values,
-                                                                        double error, LMIteration& stats) {
+std::optional<LevenbergMarquardt::Step> LevenbergMarquardt::damped_step(Iterations& it, const Values& values, double error,
+                                                                        LMIteration& stats) {
   Step step;
   Eigen::VectorXd delta;
   for (; lambda_ <= config_.max_lambda; lambda_ *= config_.lambda_up) {

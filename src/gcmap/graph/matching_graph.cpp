@@ -12,8 +12,8 @@ ScanNode make_scan_node(PointCloud cloud, double voxel_resolution) {
   return {std::make_shared<const PointCloud>(std::move(cloud)), voxels};
 }
 
-std::vector<PairOverlap> add_overlapping_pairs(FactorGraph& graph, const std::vector<ScanNode>& nodes,
-                                               const Values& values, double min_overlap, LinearizationBackend* backend) {
+std::vector<PairOverlap> add_overlapping_pairs(FactorGraph& graph, const std::vector<ScanNode>& nodes, const Values& values,
+                                               double min_overlap, LinearizationBackend* backend) {
   CpuBackend cpu;
   if (!backend) backend = &cpu;
   std::vector<PairOverlap> kept;

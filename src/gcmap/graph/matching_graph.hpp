@@ -23,8 +23,7 @@ struct PairOverlap {
 // For every pair i < j whose overlap(j -> i) at the poses is at least min_overlap, adds a
 // MatchingCostFactor with source j and target i. Returns the pairs that got a factor. Overlaps are
 // computed by the backend (the CPU when null), one source against all its targets at a time.
-std::vector<PairOverlap> add_overlapping_pairs(FactorGraph& graph, const std::vector<ScanNode>& nodes,
-                                               const Values& values, double min_overlap,
-                                               LinearizationBackend* backend = nullptr);
+std::vector<PairOverlap> add_overlapping_pairs(FactorGraph& graph, const std::vector<ScanNode>& nodes, const Values& values,
+                                               double min_overlap, LinearizationBackend* backend = nullptr);
 
 }  // namespace gcmap

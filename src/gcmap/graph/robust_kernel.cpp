@@ -8,12 +8,9 @@ namespace gcmap {
 
 double RobustKernel::weight(double r) const {
   switch (type) {
-    case Type::none:
-      return 1.0;
-    case Type::huber:
-      return r <= width ? 1.0 : width / r;
-    case Type::shifted_tukey:
-      return tukey_weight(std::abs(r - offset), width);
+    case Type::none: return 1.0;
+    case Type::huber: return r <= width ? 1.0 : width / r;
+    case Type::shifted_tukey: return tukey_weight(std::abs(r - offset), width);
   }
   return 1.0;
 }

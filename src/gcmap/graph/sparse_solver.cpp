@@ -88,10 +88,12 @@ bool SparseSolver::analyse(const SparseMatrix& A) {
 bool SparseSolver::factorize(const SparseMatrix& A) {
   if (!analyse(A)) ++reuses_;
   Stopwatch w;
-  const bool ok = std::visit([&](auto& s) {
-    s.factorize(A);
-    return s.info() == Eigen::Success;
-  }, impl_->solver);
+  const bool ok = std::visit(
+      [&](auto& s) {
+        s.factorize(A);
+        return s.info() == Eigen::Success;
+      },
+      impl_->solver);
   factorize_ms_ += w.ms();
   return ok;
 }

@@ -24,8 +24,8 @@ void ByteReader::fail(const std::string& what) const { throw Error(where_ + ": "
 
 void ByteSource::check_range(uint64_t offset, uint64_t n) const {
   if (offset > size_ || n > size_ - offset)
-    throw Error(name_ + ": truncated: needs bytes [" + std::to_string(offset) + ", " + std::to_string(offset + n) +
-                ") of a " + std::to_string(size_) + "-byte file");
+    throw Error(name_ + ": truncated: needs bytes [" + std::to_string(offset) + ", " + std::to_string(offset + n) + ") of a " +
+                std::to_string(size_) + "-byte file");
 }
 
 namespace {

@@ -11,10 +11,10 @@
 namespace gcmap::detail {
 
 struct ChunkRef {
-  uint64_t offset = 0;              // of the chunk record (or of a lone message record)
+  uint64_t offset = 0;               // of the chunk record (or of a lone message record)
   int64_t start_ns = 0, end_ns = 0;  // record-time range of its messages
-  std::vector<uint32_t> channels;   // channels / connections with messages in it; empty: unknown
-  bool lone_message = false;        // an MCAP message record outside any chunk
+  std::vector<uint32_t> channels;    // channels / connections with messages in it; empty: unknown
+  bool lone_message = false;         // an MCAP message record outside any chunk
 };
 
 struct PendingMessage {
@@ -29,8 +29,8 @@ using ChunkLoader = std::function<void(const ChunkRef&, std::vector<PendingMessa
 // Loads the chunks holding any of `channels` that overlap [begin_ns, end_ns], in order of their start
 // time, only as far as needed: a chunk is opened when the earliest pending message is not earlier
 // than its start. The loader must filter by channel and time itself.
-std::unique_ptr<MessageCursor> merge_chunks(std::vector<ChunkRef> chunks, const std::vector<uint32_t>& channels,
-                                            int64_t begin_ns, int64_t end_ns, ChunkLoader load);
+std::unique_ptr<MessageCursor> merge_chunks(std::vector<ChunkRef> chunks, const std::vector<uint32_t>& channels, int64_t begin_ns,
+                                            int64_t end_ns, ChunkLoader load);
 
 // Format readers, for open_bag.
 std::unique_ptr<BagReader> open_mcap(std::unique_ptr<class ByteSource> src);

@@ -81,8 +81,8 @@ class MergeCursor : public MessageCursor {
 
 }  // namespace
 
-std::unique_ptr<MessageCursor> merge_chunks(std::vector<ChunkRef> chunks, const std::vector<uint32_t>& channels,
-                                            int64_t begin_ns, int64_t end_ns, ChunkLoader load) {
+std::unique_ptr<MessageCursor> merge_chunks(std::vector<ChunkRef> chunks, const std::vector<uint32_t>& channels, int64_t begin_ns,
+                                            int64_t end_ns, ChunkLoader load) {
   auto wanted = [&](const ChunkRef& c) {
     if (c.end_ns < begin_ns || c.start_ns > end_ns) return false;
     if (c.channels.empty()) return true;
@@ -126,9 +126,7 @@ MessageEncoding encoding_from_name(std::string_view name) {
 
 namespace {
 
-bool has_extension(const std::string& path, const char* ext) {
-  return std::filesystem::path(path).extension() == ext;
-}
+bool has_extension(const std::string& path, const char* ext) { return std::filesystem::path(path).extension() == ext; }
 
 }  // namespace
 

@@ -19,7 +19,7 @@ const char* bag_format_name(BagFormat f);
 
 struct BagTopic {
   std::string name;
-  std::string type;          // as stored: "sensor_msgs/msg/PointCloud2" (ROS 2) or "sensor_msgs/PointCloud2"
+  std::string type;  // as stored: "sensor_msgs/msg/PointCloud2" (ROS 2) or "sensor_msgs/PointCloud2"
   MessageEncoding encoding = MessageEncoding::other;  // how its messages are serialized
   uint64_t message_count = 0;
 };

@@ -123,12 +123,11 @@ std::string choose_point_cloud_topic(const BagReader& bag, const std::string& to
   for (const std::string& c : clouds) list += (list.empty() ? "" : ", ") + c;
   if (!clouds.empty()) throw Error(bag.path() + ": several point-cloud topics (" + list + "): choose one with --topic");
   for (const BagTopic& t : bag.topics()) list += (list.empty() ? "" : ", ") + t.name + " (" + t.type + ")";
-  throw Error(bag.path() + ": no point-cloud topic (sensor_msgs/PointCloud2 or Livox CustomMsg); topics: " +
-              (list.empty() ? "none" : list));
+  throw Error(bag.path() +
+              ": no point-cloud topic (sensor_msgs/PointCloud2 or Livox CustomMsg); topics: " + (list.empty() ? "none" : list));
 }
 
-BagScanSource::BagScanSource(const std::string& path, const BagScanOptions& options)
-    : BagScanSource(open_bag(path), options) {}
+BagScanSource::BagScanSource(const std::string& path, const BagScanOptions& options) : BagScanSource(open_bag(path), options) {}
 
 BagScanSource::BagScanSource(std::unique_ptr<BagReader> bag, const BagScanOptions& options) : bag_(std::move(bag)) {
   if (!(options.start_time >= 0) || !std::isfinite(options.start_time))

@@ -26,10 +26,10 @@
 namespace gcmap {
 
 struct BagScan {
-  PointCloud cloud;           // points, intensities (when present), times (s after `stamp`, when present)
-  double stamp = 0;           // s since the epoch, see above
-  double header_stamp = 0;    // the message header's stamp
-  int64_t record_time_ns = 0; // when the bag recorded it
+  PointCloud cloud;            // points, intensities (when present), times (s after `stamp`, when present)
+  double stamp = 0;            // s since the epoch, see above
+  double header_stamp = 0;     // the message header's stamp
+  int64_t record_time_ns = 0;  // when the bag recorded it
 };
 
 // Throws Error("<where>: ...") for a cloud without x/y/z or whose point_step/row_step/data disagree.
@@ -53,8 +53,8 @@ struct CloudTopicInfo {
 CloudTopicInfo describe_cloud_topic(BagReader& bag, const std::string& topic);
 
 struct BagScanOptions {
-  std::string topic;  // empty: the single point-cloud topic
-  double start_time = 0;                                  // s after the bag's first message
+  std::string topic;                                          // empty: the single point-cloud topic
+  double start_time = 0;                                      // s after the bag's first message
   double duration = std::numeric_limits<double>::infinity();  // s
 };
 

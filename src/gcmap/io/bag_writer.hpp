@@ -13,9 +13,9 @@ namespace gcmap {
 
 struct BagWriterOptions {
   Compression compression = Compression::none;  // MCAP: none, zstd, lz4; ROS 1: none, bz2, lz4; db3: none
-  uint64_t chunk_bytes = 1 << 20;                // messages per chunk up to about this many bytes
-  bool mcap_summary = true;                      // MCAP: write the summary section and message indexes
-  uint64_t db3_messages_per_file = 0;            // db3: split into several files (0: one file)
+  uint64_t chunk_bytes = 1 << 20;               // messages per chunk up to about this many bytes
+  bool mcap_summary = true;                     // MCAP: write the summary section and message indexes
+  uint64_t db3_messages_per_file = 0;           // db3: split into several files (0: one file)
 };
 
 class BagWriter {

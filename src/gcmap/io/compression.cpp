@@ -24,8 +24,8 @@ void grow_decode(std::string& out, uint64_t max_size, uint64_t hint, const std::
   out.resize(size_t(std::min<uint64_t>(std::max<uint64_t>(hint, 4096), limit)));
   for (;;) {
     if (used == out.size()) {
-      if (out.size() >= limit) throw Error(where + ": decompressed data larger than the declared " +
-                                           std::to_string(max_size) + " bytes");
+      if (out.size() >= limit)
+        throw Error(where + ": decompressed data larger than the declared " + std::to_string(max_size) + " bytes");
       out.resize(size_t(std::min<uint64_t>(uint64_t(out.size()) * 2, limit)));
     }
     const auto [written, finished] = step(out.data() + used, out.size() - used);
@@ -83,8 +83,7 @@ void bz2_decompress(std::string_view in, uint64_t max_size, std::string& out, co
 
 }  // namespace
 
-void decompress(Compression c, std::string_view in, uint64_t max_size, bool exact, std::string& out,
-                const std::string& where) {
+void decompress(Compression c, std::string_view in, uint64_t max_size, bool exact, std::string& out, const std::string& where) {
   switch (c) {
     case Compression::none:
       if (in.size() > max_size) throw Error(where + ": data larger than the declared size");
@@ -95,8 +94,7 @@ void decompress(Compression c, std::string_view in, uint64_t max_size, bool exac
     case Compression::bz2: bz2_decompress(in, max_size, out, where); break;
   }
   if (exact && out.size() != max_size)
-    throw Error(where + ": decompressed to " + std::to_string(out.size()) + " bytes, declared " +
-                std::to_string(max_size));
+    throw Error(where + ": decompressed to " + std::to_string(out.size()) + " bytes, declared " + std::to_string(max_size));
 }
 
 std::string compress(Compression c, std::string_view in) {

@@ -63,8 +63,7 @@ class Db3Cursor : public MessageCursor {
     if (last_) advance(*last_);
     last_ = nullptr;
     for (Stream& s : streams_)
-      if (s.has_row && (!last_ || sqlite3_column_int64(s.stmt.get(), 0) < sqlite3_column_int64(last_->stmt.get(), 0)))
-        last_ = &s;
+      if (s.has_row && (!last_ || sqlite3_column_int64(s.stmt.get(), 0) < sqlite3_column_int64(last_->stmt.get(), 0))) last_ = &s;
     if (!last_) return false;
     sqlite3_stmt* st = last_->stmt.get();
     msg.time_ns = sqlite3_column_int64(st, 0);
@@ -213,7 +212,8 @@ std::vector<std::string> bag_files(const fs::path& dir, bool& zstd_messages) {
     const YAML::Node info = YAML::LoadFile(meta.string())["rosbag2_bagfile_information"];
     if (!info) throw Error(meta.string() + ": no rosbag2_bagfile_information");
     const std::string storage = info["storage_identifier"] ? info["storage_identifier"].as<std::string>() : "sqlite3";
-    if (storage != "sqlite3") throw Error(meta.string() + ": storage " + storage + " is not sqlite3 (open the .mcap file itself)");
+    if (storage != "sqlite3")
+      throw Error(meta.string() + ": storage " + storage + " is not sqlite3 (open the .mcap file itself)");
     const std::string format = info["compression_format"] ? info["compression_format"].as<std::string>() : "";
     const std::string mode = info["compression_mode"] ? info["compression_mode"].as<std::string>() : "";
     if (!format.empty() && format != "zstd") throw Error(meta.string() + ": unknown compression_format " + format);
@@ -221,9 +221,7 @@ std::vector<std::string> bag_files(const fs::path& dir, bool& zstd_messages) {
       throw Error(meta.string() + ": compression_mode FILE is not supported (run `ros2 bag decompress` first)");
     zstd_messages = mode == "MESSAGE" && format == "zstd";
     for (const auto& f : info["relative_file_paths"]) files.push_back((dir / f.as<std::string>()).string());
-  } catch (const YAML::Exception& e) {
-    throw Error(meta.string() + ": " + e.what());
-  }
+  } catch (const YAML::Exception& e) { throw Error(meta.string() + ": " + e.what()); }
   if (files.empty()) throw Error(meta.string() + ": relative_file_paths lists no file");
   return files;
 }

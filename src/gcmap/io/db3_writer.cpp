@@ -112,7 +112,8 @@ class Db3Writer : public BagWriter {
     exec(kSchema);
     for (size_t i = 0; i < topics_.size(); ++i) insert_topic(i);
     exec("BEGIN");
-    if (sqlite3_prepare_v2(db_, "INSERT INTO messages(topic_id, timestamp, data) VALUES(?, ?, ?)", -1, &insert_, nullptr) != SQLITE_OK)
+    if (sqlite3_prepare_v2(db_, "INSERT INTO messages(topic_id, timestamp, data) VALUES(?, ?, ?)", -1, &insert_, nullptr) !=
+        SQLITE_OK)
       fail("prepare");
     in_file_ = 0;
   }

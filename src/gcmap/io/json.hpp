@@ -27,7 +27,11 @@ class Json {
   Json(std::string v) : value_(std::move(v)) {}
   Json(Array v) : value_(std::move(v)) {}
 
-  static Json object() { Json j; j.value_ = Object{}; return j; }
+  static Json object() {
+    Json j;
+    j.value_ = Object{};
+    return j;
+  }
   static Json array() { return Json(Array{}); }
 
   // Object member (created on first use, insertion order kept).

@@ -13,7 +13,8 @@ constexpr size_t kLzfMaxRatio = 88;
 
 std::string lzf_decompress(std::string_view in, size_t expected_size) {
   if (expected_size / kLzfMaxRatio > in.size())
-    throw Error("corrupt LZF data (" + std::to_string(in.size()) + " bytes cannot expand to " + std::to_string(expected_size) + ")");
+    throw Error("corrupt LZF data (" + std::to_string(in.size()) + " bytes cannot expand to " + std::to_string(expected_size) +
+                ")");
   std::string out(expected_size, '\0');
   const auto* ip = reinterpret_cast<const unsigned char*>(in.data());
   const auto* in_end = ip + in.size();

@@ -15,7 +15,16 @@ namespace gcmap::detail {
 namespace {
 
 constexpr std::string_view kMagic("\x89MCAP0\r\n", 8);
-enum Op : uint8_t { kSchema = 3, kChannel = 4, kMessage = 5, kChunk = 6, kChunkIndex = 8, kStatistics = 11, kDataEnd = 15, kFooter = 2 };
+enum Op : uint8_t {
+  kSchema = 3,
+  kChannel = 4,
+  kMessage = 5,
+  kChunk = 6,
+  kChunkIndex = 8,
+  kStatistics = 11,
+  kDataEnd = 15,
+  kFooter = 2
+};
 constexpr uint64_t kMaxChunkBytes = uint64_t(1) << 32;
 constexpr uint64_t kFooterRecord = 1 + 8 + 20;
 
@@ -105,7 +114,8 @@ class McapReader : public BagReader {
     else if (!comp.empty()) r.fail("unknown compression '" + std::string(comp) + "'");
     std::string_view records;
     if (c == Compression::none) {
-      if (data.size() != usize) r.fail("chunk holds " + std::to_string(data.size()) + " bytes, declares " + std::to_string(usize));
+      if (data.size() != usize)
+        r.fail("chunk holds " + std::to_string(data.size()) + " bytes, declares " + std::to_string(usize));
       const size_t from = size_t(data.data() - packed.data());
       out = std::move(packed);
       records = std::string_view(out).substr(from, usize);
@@ -289,8 +299,7 @@ void McapReader::scan_linear() {
     pos += 9 + len;
   }
   for (auto& [id, c] : channels_) c.count = counts.count(id) ? counts[id] : 0;
-  if (no_footer_ && !cut)
-    warn(path_ + ": no MCAP footer (truncated or still being written): read up to the end");
+  if (no_footer_ && !cut) warn(path_ + ": no MCAP footer (truncated or still being written): read up to the end");
 }
 
 }  // namespace

@@ -89,10 +89,9 @@ void write_ply(const std::string& path, const PointCloud& cloud) {
 void write_pcd(const std::string& path, const PointCloud& cloud) {
   write_file_atomic(path, [&](std::ostream& out) {
     const bool with_i = cloud.has_intensities();
-    out << "# .PCD v0.7 - written by gcmap\nVERSION 0.7\nFIELDS x y z" << (with_i ? " intensity" : "")
-        << "\nSIZE 4 4 4" << (with_i ? " 4" : "") << "\nTYPE F F F" << (with_i ? " F" : "") << "\nCOUNT 1 1 1"
-        << (with_i ? " 1" : "") << "\nWIDTH " << cloud.size() << "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS "
-        << cloud.size() << "\nDATA binary\n";
+    out << "# .PCD v0.7 - written by gcmap\nVERSION 0.7\nFIELDS x y z" << (with_i ? " intensity" : "") << "\nSIZE 4 4 4"
+        << (with_i ? " 4" : "") << "\nTYPE F F F" << (with_i ? " F" : "") << "\nCOUNT 1 1 1" << (with_i ? " 1" : "") << "\nWIDTH "
+        << cloud.size() << "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << cloud.size() << "\nDATA binary\n";
     write_records(out, cloud, cloud.has_intensities());
   });
 }

@@ -42,20 +42,60 @@ double read_scalar(const char* p, char type, int size, bool big_endian) {
   if (big_endian != (std::endian::native == std::endian::big)) std::reverse(b, b + size);
   switch (type) {
     case 'F':
-      if (size == 4) { float v; std::memcpy(&v, b, 4); return v; }
-      if (size == 8) { double v; std::memcpy(&v, b, 8); return v; }
+      if (size == 4) {
+        float v;
+        std::memcpy(&v, b, 4);
+        return v;
+      }
+      if (size == 8) {
+        double v;
+        std::memcpy(&v, b, 8);
+        return v;
+      }
       break;
     case 'I':
-      if (size == 1) { int8_t v; std::memcpy(&v, b, 1); return v; }
-      if (size == 2) { int16_t v; std::memcpy(&v, b, 2); return v; }
-      if (size == 4) { int32_t v; std::memcpy(&v, b, 4); return v; }
-      if (size == 8) { int64_t v; std::memcpy(&v, b, 8); return static_cast<double>(v); }
+      if (size == 1) {
+        int8_t v;
+        std::memcpy(&v, b, 1);
+        return v;
+      }
+      if (size == 2) {
+        int16_t v;
+        std::memcpy(&v, b, 2);
+        return v;
+      }
+      if (size == 4) {
+        int32_t v;
+        std::memcpy(&v, b, 4);
+        return v;
+      }
+      if (size == 8) {
+        int64_t v;
+        std::memcpy(&v, b, 8);
+        return static_cast<double>(v);
+      }
       break;
     case 'U':
-      if (size == 1) { uint8_t v; std::memcpy(&v, b, 1); return v; }
-      if (size == 2) { uint16_t v; std::memcpy(&v, b, 2); return v; }
-      if (size == 4) { uint32_t v; std::memcpy(&v, b, 4); return v; }
-      if (size == 8) { uint64_t v; std::memcpy(&v, b, 8); return static_cast<double>(v); }
+      if (size == 1) {
+        uint8_t v;
+        std::memcpy(&v, b, 1);
+        return v;
+      }
+      if (size == 2) {
+        uint16_t v;
+        std::memcpy(&v, b, 2);
+        return v;
+      }
+      if (size == 4) {
+        uint32_t v;
+        std::memcpy(&v, b, 4);
+        return v;
+      }
+      if (size == 8) {
+        uint64_t v;
+        std::memcpy(&v, b, 8);
+        return static_cast<double>(v);
+      }
       break;
   }
   return std::nan("");
@@ -86,9 +126,18 @@ bool parse_double(const char* b, const char* e, double& v) {
   // from_chars rejects "nan"/"inf" spellings in some forms; keep them as non-finite points.
   std::string s(b, e);
   std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  if (s.rfind("nan", 0) == 0 || s.rfind("-nan", 0) == 0) { v = std::nan(""); return true; }
-  if (s.rfind("inf", 0) == 0) { v = INFINITY; return true; }
-  if (s.rfind("-inf", 0) == 0) { v = -INFINITY; return true; }
+  if (s.rfind("nan", 0) == 0 || s.rfind("-nan", 0) == 0) {
+    v = std::nan("");
+    return true;
+  }
+  if (s.rfind("inf", 0) == 0) {
+    v = INFINITY;
+    return true;
+  }
+  if (s.rfind("-inf", 0) == 0) {
+    v = -INFINITY;
+    return true;
+  }
   return false;
 }
 
@@ -204,9 +253,12 @@ RawPcdHeader read_pcd_header(const std::string& path, std::string_view data, siz
     tok.erase(tok.begin());
     if (key == "VERSION" || key == "VIEWPOINT") continue;
     if (key == "FIELDS") h.fields.insert(h.fields.end(), tok.begin(), tok.end());
-    else if (key == "SIZE") for (auto& t : tok) h.sizes.push_back(parse_count(path, "SIZE", t));
-    else if (key == "TYPE") for (auto& t : tok) h.types.push_back(t.size() == 1 ? t[0] : '?');
-    else if (key == "COUNT") for (auto& t : tok) h.counts.push_back(parse_count(path, "COUNT", t));
+    else if (key == "SIZE")
+      for (auto& t : tok) h.sizes.push_back(parse_count(path, "SIZE", t));
+    else if (key == "TYPE")
+      for (auto& t : tok) h.types.push_back(t.size() == 1 ? t[0] : '?');
+    else if (key == "COUNT")
+      for (auto& t : tok) h.counts.push_back(parse_count(path, "COUNT", t));
     else if (key == "WIDTH" && tok.size() == 1) h.width = parse_count(path, "WIDTH", tok[0]);
     else if (key == "HEIGHT" && tok.size() == 1) h.height = parse_count(path, "HEIGHT", tok[0]);
     else if (key == "POINTS" && tok.size() == 1) h.points = parse_count(path, "POINTS", tok[0]);
@@ -228,7 +280,8 @@ PcdHeader parse_pcd_header(const std::string& path, std::string_view data, size_
     if (raw.sizes[f] > 8 || !valid_scalar(raw.types[f], static_cast<int>(raw.sizes[f])) || raw.counts[f] < 1 ||
         raw.counts[f] > kMaxFieldCount)
       throw Error(path + ": PCD field '" + raw.fields[f] + "' has an unsupported TYPE/SIZE/COUNT");
-    h.fields.push_back(Field{raw.fields[f], raw.types[f], static_cast<int>(raw.sizes[f]), static_cast<int>(raw.counts[f]), h.record});
+    h.fields.push_back(
+        Field{raw.fields[f], raw.types[f], static_cast<int>(raw.sizes[f]), static_cast<int>(raw.counts[f]), h.record});
     h.record += raw.sizes[f] * raw.counts[f];
   }
   require_xyz(path, h.fields);
@@ -264,9 +317,7 @@ PointCloud pcd_compressed(const std::string& path, std::string_view data, size_t
   std::string raw;
   try {
     raw = lzf_decompress(data.substr(pos + 8, compressed), uncompressed);
-  } catch (const Error& e) {
-    throw Error(path + ": " + e.what());
-  }
+  } catch (const Error& e) { throw Error(path + ": " + e.what()); }
   // Column-major: each field's values for all points are contiguous.
   std::vector<size_t> column(h.fields.size());
   size_t off = 0;
@@ -306,10 +357,10 @@ namespace {
 
 bool ply_type(const std::string& name, char& type, int& size) {
   static const std::pair<const char*, std::pair<char, int>> table[] = {
-      {"char", {'I', 1}},   {"int8", {'I', 1}},    {"uchar", {'U', 1}},  {"uint8", {'U', 1}},
-      {"short", {'I', 2}},  {"int16", {'I', 2}},   {"ushort", {'U', 2}}, {"uint16", {'U', 2}},
-      {"int", {'I', 4}},    {"int32", {'I', 4}},   {"uint", {'U', 4}},   {"uint32", {'U', 4}},
-      {"float", {'F', 4}},  {"float32", {'F', 4}}, {"double", {'F', 8}}, {"float64", {'F', 8}}};
+      {"char", {'I', 1}},  {"int8", {'I', 1}},    {"uchar", {'U', 1}},  {"uint8", {'U', 1}},
+      {"short", {'I', 2}}, {"int16", {'I', 2}},   {"ushort", {'U', 2}}, {"uint16", {'U', 2}},
+      {"int", {'I', 4}},   {"int32", {'I', 4}},   {"uint", {'U', 4}},   {"uint32", {'U', 4}},
+      {"float", {'F', 4}}, {"float32", {'F', 4}}, {"double", {'F', 8}}, {"float64", {'F', 8}}};
   for (const auto& [n, ts] : table) {
     if (name == n) {
       type = ts.first;
@@ -349,7 +400,8 @@ std::vector<PlyElement> read_ply_header(const std::string& path, std::string_vie
         continue;
       }
       Field f;
-      if (tok.size() != 3 || !ply_type(tok[1], f.type, f.size)) throw Error(path + ": bad PLY property line '" + line.substr(0, 40) + "'");
+      if (tok.size() != 3 || !ply_type(tok[1], f.type, f.size))
+        throw Error(path + ": bad PLY property line '" + line.substr(0, 40) + "'");
       f.name = tok[2];
       f.offset = el.record;
       el.record += f.size;

@@ -68,7 +68,8 @@ class Ros1Reader : public BagReader {
     format_ = BagFormat::ros1;
     std::string head;
     src_->read(0, std::min<uint64_t>(src_->size(), kMagic.size()), head);
-    if (head != kMagic) throw Error(path_ + (head.rfind("#ROSBAG V", 0) == 0 ? ": unsupported ROS bag version (2.0 only)" : ": not a ROS 1 bag"));
+    if (head != kMagic)
+      throw Error(path_ + (head.rfind("#ROSBAG V", 0) == 0 ? ": unsupported ROS bag version (2.0 only)" : ": not a ROS 1 bag"));
     std::string buf;
     const uint64_t first = kMagic.size() + read_record(kMagic.size(), buf);
     ByteReader r(buf, where(kMagic.size()));
@@ -81,9 +82,7 @@ class Ros1Reader : public BagReader {
       try {
         read_index(index_pos);
         indexed = chunks_.size() == chunk_count;
-      } catch (const Error& e) {
-        indexed = false;
-      }
+      } catch (const Error& e) { indexed = false; }
     }
     if (!indexed && !scan_linear(first))  // one warning: where the file is cut, else that the index is missing
       warn(path_ + ": no valid index (bag not closed): read every chunk");
@@ -229,8 +228,7 @@ bool Ros1Reader::scan_linear(uint64_t pos) {
     try {
       len = read_record(pos, buf);
     } catch (const Error&) {
-      warn(path_ + ": truncated in the record at offset " + std::to_string(pos) +
-           " (no valid index): read what precedes it");
+      warn(path_ + ": truncated in the record at offset " + std::to_string(pos) + " (no valid index): read what precedes it");
       return true;
     }
     ByteReader r(buf, where(pos));

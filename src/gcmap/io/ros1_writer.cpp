@@ -22,9 +22,7 @@ std::string bin(T v) {
   return s;
 }
 
-std::string ros_time(int64_t ns) {
-  return bin<uint32_t>(uint32_t(ns / 1000000000)) + bin<uint32_t>(uint32_t(ns % 1000000000));
-}
+std::string ros_time(int64_t ns) { return bin<uint32_t>(uint32_t(ns / 1000000000)) + bin<uint32_t>(uint32_t(ns % 1000000000)); }
 
 std::string fields(const Fields& f) {
   std::string out;
@@ -51,7 +49,9 @@ class Ros1Writer : public BagWriter {
     std::string ros1_type = type;
     if (const size_t p = ros1_type.find("/msg/"); p != std::string::npos) ros1_type.erase(p, 4);
     const uint32_t id = uint32_t(connections_.size());
-    const std::string data = fields({{"topic", topic}, {"type", ros1_type}, {"md5sum", message_md5(ros1_type)},
+    const std::string data = fields({{"topic", topic},
+                                     {"type", ros1_type},
+                                     {"md5sum", message_md5(ros1_type)},
                                      {"message_definition", message_definition(ros1_type)}});
     connections_.push_back(record({{"op", bin<uint8_t>(7)}, {"conn", bin(id)}, {"topic", topic}}, data));
     return id;
@@ -78,7 +78,8 @@ class Ros1Writer : public BagWriter {
 
  private:
   std::string bag_header(uint64_t index_pos) const {
-    const std::string h = fields({{"op", bin<uint8_t>(3)}, {"index_pos", bin(index_pos)},
+    const std::string h = fields({{"op", bin<uint8_t>(3)},
+                                  {"index_pos", bin(index_pos)},
                                   {"conn_count", bin(uint32_t(connections_.size()))},
                                   {"chunk_count", bin(uint32_t(chunk_infos_.size()))}});
     return bin(uint32_t(h.size())) + h + bin(uint32_t(kBagHeaderBytes - 8 - h.size())) +
@@ -95,13 +96,16 @@ class Ros1Writer : public BagWriter {
     for (auto& [conn, entries] : index_) {
       std::string data;
       for (auto& [t, off] : entries) data += ros_time(t) + bin(off);
-      file_.write(record({{"op", bin<uint8_t>(4)}, {"ver", bin<uint32_t>(1)}, {"conn", bin(conn)},
-                          {"count", bin(uint32_t(entries.size()))}},
-                         data));
+      file_.write(record(
+          {{"op", bin<uint8_t>(4)}, {"ver", bin<uint32_t>(1)}, {"conn", bin(conn)}, {"count", bin(uint32_t(entries.size()))}},
+          data));
       counts += bin(conn) + bin(uint32_t(entries.size()));
     }
-    chunk_infos_.push_back(record({{"op", bin<uint8_t>(6)}, {"ver", bin<uint32_t>(1)}, {"chunk_pos", bin(chunk_at)},
-                                   {"start_time", ros_time(chunk_start_)}, {"end_time", ros_time(chunk_end_)},
+    chunk_infos_.push_back(record({{"op", bin<uint8_t>(6)},
+                                   {"ver", bin<uint32_t>(1)},
+                                   {"chunk_pos", bin(chunk_at)},
+                                   {"start_time", ros_time(chunk_start_)},
+                                   {"end_time", ros_time(chunk_end_)},
                                    {"count", bin(uint32_t(index_.size()))}},
                                   counts));
     chunk_.clear();

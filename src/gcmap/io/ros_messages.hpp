@@ -13,7 +13,16 @@ namespace gcmap {
 enum class MessageEncoding { ros1, cdr, other };
 
 // sensor_msgs/PointField datatypes.
-enum class PointFieldType : uint8_t { int8 = 1, uint8 = 2, int16 = 3, uint16 = 4, int32 = 5, uint32 = 6, float32 = 7, float64 = 8 };
+enum class PointFieldType : uint8_t {
+  int8 = 1,
+  uint8 = 2,
+  int16 = 3,
+  uint16 = 4,
+  int32 = 5,
+  uint32 = 6,
+  float32 = 7,
+  float64 = 8
+};
 size_t point_field_size(uint8_t datatype);  // 0 for an unknown datatype
 const char* point_field_type_name(uint8_t datatype);
 

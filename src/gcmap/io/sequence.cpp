@@ -66,7 +66,11 @@ FolderScanSource::FolderScanSource(const std::string& dir, int start, int max_fr
     : FolderScanSource(decide_input(dir, {}), start, max_frames) {}
 
 FolderScanSource::FolderScanSource(const InputAssumptions& input, int start, int max_frames, BinFields bin_fields)
-    : root_(input.root), files_(input.files), stamps_(input.stamps), start_(start), kitti_hdl64_(input.kitti_correction),
+    : root_(input.root),
+      files_(input.files),
+      stamps_(input.stamps),
+      start_(start),
+      kitti_hdl64_(input.kitti_correction),
       bin_fields_(bin_fields) {
   if (start < 0) throw Error("--start: must be >= 0");
   if (max_frames < 0) throw Error("--max-frames: must be >= 0");

@@ -80,7 +80,9 @@ Trajectory parse_trajectory(std::string_view text, const std::string& path) {
     if (tok.size() == 12 && first_numeric) fmt = TrajectoryFormat::kitti;
     else if (tok.size() == 8 && first_numeric) fmt = TrajectoryFormat::tum;
     else if (tok.size() == 8) fmt = TrajectoryFormat::named;
-    else throw Error(where + "expected 12 numbers (KITTI), 't x y z qx qy qz qw' (TUM) or 'NAME x y z qx qy qz qw', got " + std::to_string(tok.size()) + " fields");
+    else
+      throw Error(where + "expected 12 numbers (KITTI), 't x y z qx qy qz qw' (TUM) or 'NAME x y z qx qy qz qw', got " +
+                  std::to_string(tok.size()) + " fields");
     if (!detected) {
       traj.format = fmt;
       detected = true;
@@ -122,16 +124,16 @@ void write_trajectory(const std::string& path, const Trajectory& traj) {
       const Eigen::Isometry3d& T = traj.poses[i];
       if (traj.format == TrajectoryFormat::kitti) {
         const Eigen::Matrix<double, 3, 4> M = T.matrix().topRows<3>();
-        std::snprintf(buf, sizeof(buf), "%.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g\n", M(0, 0),
-                      M(0, 1), M(0, 2), M(0, 3), M(1, 0), M(1, 1), M(1, 2), M(1, 3), M(2, 0), M(2, 1), M(2, 2), M(2, 3));
+        std::snprintf(buf, sizeof(buf), "%.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g\n", M(0, 0), M(0, 1),
+                      M(0, 2), M(0, 3), M(1, 0), M(1, 1), M(1, 2), M(1, 3), M(2, 0), M(2, 1), M(2, 2), M(2, 3));
       } else {
         double v[7];
         pose_to_xyz_quat(T, v);
         const std::string head = traj.format == TrajectoryFormat::tum
                                      ? [&] { char s[64]; std::snprintf(s, sizeof(s), "%.9f", i < traj.stamps.size() ? traj.stamps[i] : double(i)); return std::string(s); }()
                                      : (i < traj.names.size() ? traj.names[i] : std::string("v").append(std::to_string(i)));
-        std::snprintf(buf, sizeof(buf), "%s %.9g %.9g %.9g %.9g %.9g %.9g %.9g\n", head.c_str(), v[0], v[1], v[2], v[3],
-                      v[4], v[5], v[6]);
+        std::snprintf(buf, sizeof(buf), "%s %.9g %.9g %.9g %.9g %.9g %.9g %.9g\n", head.c_str(), v[0], v[1], v[2], v[3], v[4],
+                      v[5], v[6]);
       }
       out << buf;
     }

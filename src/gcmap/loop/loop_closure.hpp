@@ -16,8 +16,8 @@ struct LoopConfig {
   int exclude_recent = 5;                 // submaps before the current one that are not searched
   int num_candidates = 10;                // ring-key neighbours matched in full
   double max_descriptor_distance = 0.15;  // strict: a false loop costs more than a missed one
-  double verification_downsample = 0.5;  // m, both submaps before GICP
-  double inlier_distance = 0.3;          // m, after GICP
+  double verification_downsample = 0.5;   // m, both submaps before GICP
+  double inlier_distance = 0.3;           // m, after GICP
   // Strict, and the plane distance decides: in a regular street grid wrong blocks align many points
   // too, but farther from their planes than true revisits. Scale max_inlier_rmse with the sensor's noise.
   double min_inlier_fraction = 0.6;
@@ -46,7 +46,7 @@ LoopVerification verify_loop(const PointCloud& source, const PointCloud& target,
 // The constraint T_target^-1 T_source ~ measured with constant information and the shifted Tukey
 // kernel: it pulls while the estimate is far from the loop, lets go once it is satisfied, and
 // ignores grossly wrong loops.
-std::shared_ptr<RelativePoseFactor> make_loop_factor(int target_key, int source_key,
-                                                     const Eigen::Isometry3d& T_target_source, const LoopConfig& config);
+std::shared_ptr<RelativePoseFactor> make_loop_factor(int target_key, int source_key, const Eigen::Isometry3d& T_target_source,
+                                                     const LoopConfig& config);
 
 }  // namespace gcmap

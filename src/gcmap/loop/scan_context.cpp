@@ -118,13 +118,15 @@ struct RingKeys {
   size_t kdtree_get_point_count() const { return count; }
   float kdtree_get_pt(size_t i, size_t dim) const { return places[i].ring_key[dim]; }
   template <class BBox>
-  bool kdtree_get_bbox(BBox&) const { return false; }
+  bool kdtree_get_bbox(BBox&) const {
+    return false;
+  }
 };
 
 }  // namespace
 
 std::vector<ScanContextDatabase::Result> ScanContextDatabase::query(const std::vector<const ScanContext*>& descriptors,
-                                                                   size_t end, int num_candidates) const {
+                                                                    size_t end, int num_candidates) const {
   std::vector<Result> out(descriptors.size());
   end = std::min(end, places_.size());
   if (end == 0 || num_candidates < 1 || descriptors.empty()) return out;

@@ -40,9 +40,8 @@ GlobalMapper::GlobalMapper(const GlobalMappingConfig& config, const LoopConfig& 
     : config_(config),
       loop_(loop),
       backend_(std::move(backend)),
-      lazy_(config.relinearize == Relinearize::moved
-                ? std::make_shared<LazyBackend>(backend_, config.relinearize_threshold)
-                : nullptr),
+      lazy_(config.relinearize == Relinearize::moved ? std::make_shared<LazyBackend>(backend_, config.relinearize_threshold)
+                                                     : nullptr),
       lm_(lm_config(config, config.max_iterations, config.relative_error_tol), lm_backend()) {
   if (lazy_) lazy_->set_max_relinearizations(static_cast<size_t>(config.max_relinearizations));
 }
@@ -91,13 +90,15 @@ void GlobalMapper::insert(Submap s, LoopDetector* loops) {
   if (connect_overlapping(id, first) == 0) {
     // Only where the submap would otherwise be disconnected.
     const Submap& prev = submaps_[id - 1];
-    add_factor({FactorKind::odometry, id, id - 1, 0.0,
-                std::make_shared<RelativePoseFactor>(id - 1, id, prev.T_odom.inverse() * cur.T_odom, odometry_factor_information())});
+    add_factor(
+        {FactorKind::odometry, id, id - 1, 0.0,
+         std::make_shared<RelativePoseFactor>(id - 1, id, prev.T_odom.inverse() * cur.T_odom, odometry_factor_information())});
   }
   stats_.factors.add(w.lap_ms());
   std::optional<LoopRecord> loop;
   if (loops && loop_.enabled && config_.mode == GlobalMode::full) loop = loops->detect(id, submaps_);
-  if (loop) add_factor({FactorKind::loop, id, loop->target, 0.0, make_loop_factor(loop->target, id, loop->T_target_source, loop_)});
+  if (loop)
+    add_factor({FactorKind::loop, id, loop->target, 0.0, make_loop_factor(loop->target, id, loop->T_target_source, loop_)});
   w.lap_ms();  // loop time is counted in its own statistics
   // A verified loop says the estimate was off where it closes, so the revisit factors made at that
   // estimate may sit in a wrong minimum: the loop first steers without them.
@@ -158,7 +159,8 @@ int GlobalMapper::connect_overlapping(int id, int first) {
     targets.push_back(submaps_[j].voxels);
     T_target_source.push_back(values_.at(j).inverse() * values_.at(id));
   }
-  const std::vector<TargetOverlap> kept = overlapping_targets(*backend_, cur.factor_source, targets, T_target_source, config_.th_min);
+  const std::vector<TargetOverlap> kept =
+      overlapping_targets(*backend_, cur.factor_source, targets, T_target_source, config_.th_min);
   for (const TargetOverlap& t : kept) {
     const int j = candidates[t.index];
     if (config_.factor == FactorSource::se3) {
@@ -171,7 +173,7 @@ int GlobalMapper::connect_overlapping(int id, int first) {
     } else {
       add_factor({FactorKind::matching_cost, id, j, t.overlap,
                   std::make_shared<MatchingCostFactor>(id, j, cur.factor_source, submaps_[j].voxels,
-                                                         TrialVoxels::kept_per_optimization)});
+                                                       TrialVoxels::kept_per_optimization)});
     }
   }
   return static_cast<int>(kept.size());

@@ -91,7 +91,7 @@ class GlobalMapper {
   std::shared_ptr<LazyBackend> lazy_;  // between LM and backend_ when global.relinearize is moved
   std::vector<Submap> submaps_;
   std::vector<GlobalFactor> factors_;
-  std::vector<char> connected_;   // per past submap: has a factor from the submap being inserted
+  std::vector<char> connected_;  // per past submap: has a factor from the submap being inserted
   Values values_;
   LevenbergMarquardt lm_;
   GlobalMappingStats stats_;

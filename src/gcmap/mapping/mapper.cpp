@@ -108,9 +108,8 @@ class SlabAssembler {
       : submaps_(submaps), inv_(1.0 / resolution), resolution_(resolution) {
     for (const Eigen::Isometry3d& T : placements) placed_.push_back({T.linear().cast<float>(), T.translation().cast<float>()});
     // Intensity is mapped where every submap has it (a mean per voxel, as the points).
-    intensities_ = !submaps.empty() && std::all_of(submaps.begin(), submaps.end(), [](const Submap& s) {
-      return s.cloud->has_intensities();
-    });
+    intensities_ = !submaps.empty() &&
+                   std::all_of(submaps.begin(), submaps.end(), [](const Submap& s) { return s.cloud->has_intensities(); });
   }
 
   PointCloud assemble(size_t block_points) {
@@ -162,7 +161,8 @@ class SlabAssembler {
     if (hi < lo_) return false;
     while (((hi - lo_) >> shift_) >= (int64_t{1} << 20)) ++shift_;
     counts_.assign(static_cast<size_t>((hi - lo_) >> shift_) + 1, 0);
-    for (size_t s = 0; s < submaps_.size(); ++s) for_each_point(s, [&](const Eigen::Vector3f& q, size_t) { ++counts_[bin(q.x())]; });
+    for (size_t s = 0; s < submaps_.size(); ++s)
+      for_each_point(s, [&](const Eigen::Vector3f& q, size_t) { ++counts_[bin(q.x())]; });
     return true;
   }
 

@@ -137,15 +137,17 @@ MappingPipeline::Tracked MappingPipeline::track_frame(PreparedScan scan, std::op
   frame_figures_.push_back({e.quality, e.deskew_shift, scan.cloud != nullptr});
   if (e.revised) odometry_poses_[e.revised->frame] = e.revised->T_world_frame;
   if (f.odometry_failed) {
-    spdlog::warn("scan {}: odometry failed (too few matches, or far from the prediction with little overlap), "
-                 "placed by the prediction",
-                 f.index);
+    spdlog::warn(
+        "scan {}: odometry failed (too few matches, or far from the prediction with little overlap), "
+        "placed by the prediction",
+        f.index);
     ++odometry_failures_;
   }
   if (e.lost)
-    spdlog::warn("scan {}: odometry lost (scans in a row placed by the prediction): a new local model starts "
-                 "at the next scan",
-                 f.index);
+    spdlog::warn(
+        "scan {}: odometry lost (scans in a row placed by the prediction): a new local model starts "
+        "at the next scan",
+        f.index);
   odometry_ms_.add(w.lap_ms());
   stamps_.push_back(scan.stamp);
   odometry_poses_.push_back(f.T_odom);
@@ -198,53 +200,53 @@ size_t MappingPipeline::run(ScanSource& source, const RunOptions& options) {
   // The mapping stages alone cannot keep both cores busy (LM solves, assembly and voxel-map inserts
   // are serial), so scans are loaded and prepared ahead: 3 in flight on 2 cores, more where more
   // threads can prepare scans side by side (with a GPU, each mostly waits on its kernel).
-  const size_t in_flight = std::max<size_t>(3, tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism) / 2);
-  tbb::parallel_pipeline(
-      in_flight,
-      tbb::make_filter<void, Item>(tbb::filter_mode::serial_in_order,
-                                   [&](tbb::flow_control& fc) {
-                                     Item item;
-                                     std::optional<ScanRecord> r;
-                                     if (!ended && !(options.stop && options.stop->load())) r = source.next();
-                                     if (!r) {
-                                       ended = true;
-                                       fc.stop();
-                                       return item;
-                                     }
-                                     item.frame = next++;
-                                     item.record = std::move(*r);
-                                     return item;
-                                   }) &
-          tbb::make_filter<Item, Item>(tbb::filter_mode::parallel,
-                                       [&](Item item) {
-                                         Stopwatch w;
-                                         try {
-                                           item.prepared = prepare(item.record.load(), item.record.stamp);
-                                         } catch (const Error& e) {
-                                           item.prepared.stamp = item.record.stamp;
-                                           item.prepared.error = e.what();
-                                           item.prepared.preprocess_ms = w.ms();
-                                         }
-                                         return item;
-                                       }) &
-          // Odometry and mapping are serial stages of their own: the odometry of one frame runs
-          // while the mapper takes the one before (the backends serve both at once). Each is
-          // isolated: while waiting for its own parallel loops, a stage must not pick up a scan
-          // being loaded and prepared (TBB lets a waiting thread steal any task), which would hold
-          // up the serial stages that bound the throughput.
-          tbb::make_filter<Item, Item>(tbb::filter_mode::serial_in_order,
-                                       [&](Item item) {
-                                         std::optional<Eigen::Isometry3d> guess;
-                                         if (options.initial_pose) guess = options.initial_pose(item.frame);
-                                         item.tracked = tbb::this_task_arena::isolate(
-                                             [&] { return track_frame(std::move(item.prepared), guess); });
-                                         return item;
-                                       }) &
-          tbb::make_filter<Item, void>(tbb::filter_mode::serial_in_order, [&](Item item) {
-            const Frame f = tbb::this_task_arena::isolate([&] { return map_frame(std::move(item.tracked)); });
-            ++added;
-            if (options.on_frame) options.on_frame(f);
-          }));
+  const size_t in_flight =
+      std::max<size_t>(3, tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism) / 2);
+  tbb::parallel_pipeline(in_flight,
+                         tbb::make_filter<void, Item>(tbb::filter_mode::serial_in_order,
+                                                      [&](tbb::flow_control& fc) {
+                                                        Item item;
+                                                        std::optional<ScanRecord> r;
+                                                        if (!ended && !(options.stop && options.stop->load())) r = source.next();
+                                                        if (!r) {
+                                                          ended = true;
+                                                          fc.stop();
+                                                          return item;
+                                                        }
+                                                        item.frame = next++;
+                                                        item.record = std::move(*r);
+                                                        return item;
+                                                      }) &
+                             tbb::make_filter<Item, Item>(tbb::filter_mode::parallel,
+                                                          [&](Item item) {
+                                                            Stopwatch w;
+                                                            try {
+                                                              item.prepared = prepare(item.record.load(), item.record.stamp);
+                                                            } catch (const Error& e) {
+                                                              item.prepared.stamp = item.record.stamp;
+                                                              item.prepared.error = e.what();
+                                                              item.prepared.preprocess_ms = w.ms();
+                                                            }
+                                                            return item;
+                                                          }) &
+                             // Odometry and mapping are serial stages of their own: the odometry of one frame runs
+                             // while the mapper takes the one before (the backends serve both at once). Each is
+                             // isolated: while waiting for its own parallel loops, a stage must not pick up a scan
+                             // being loaded and prepared (TBB lets a waiting thread steal any task), which would hold
+                             // up the serial stages that bound the throughput.
+                             tbb::make_filter<Item, Item>(tbb::filter_mode::serial_in_order,
+                                                          [&](Item item) {
+                                                            std::optional<Eigen::Isometry3d> guess;
+                                                            if (options.initial_pose) guess = options.initial_pose(item.frame);
+                                                            item.tracked = tbb::this_task_arena::isolate(
+                                                                [&] { return track_frame(std::move(item.prepared), guess); });
+                                                            return item;
+                                                          }) &
+                             tbb::make_filter<Item, void>(tbb::filter_mode::serial_in_order, [&](Item item) {
+                               const Frame f = tbb::this_task_arena::isolate([&] { return map_frame(std::move(item.tracked)); });
+                               ++added;
+                               if (options.on_frame) options.on_frame(f);
+                             }));
   return added;
 }
 

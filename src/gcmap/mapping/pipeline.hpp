@@ -35,16 +35,16 @@ struct Frame {
   // Current estimate, frame 0 the identity; later insertions and the final optimization move it.
   Eigen::Isometry3d T_world_frame = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d T_odom = Eigen::Isometry3d::Identity();  // odometry, or the given guess
-  size_t points = 0;    // after preprocessing
+  size_t points = 0;                                         // after preprocessing
   bool deskewed = false;
-  bool odometry_failed = false;  // registration rejected (see Odometry::estimate): placed by the prediction
+  bool odometry_failed = false;      // registration rejected (see Odometry::estimate): placed by the prediction
   RegistrationQuality registration;  // the odometry's registration of it (mapping/quality.hpp)
   double deskew_shift = 0.0;         // m, mean over points
 };
 
 struct PipelineStats {
   size_t frames = 0, unusable = 0;
-  size_t odometry_failures = 0;  // frames with Frame::odometry_failed
+  size_t odometry_failures = 0;      // frames with Frame::odometry_failed
   TimingStats preprocess, odometry;  // preprocess overlaps the other stages in run()
   MapperStats mapper;
   double seconds = 0.0;  // from construction to finish()
@@ -52,7 +52,7 @@ struct PipelineStats {
 
 // A raw scan turned into what odometry and mapping take; made by prepare() on any thread.
 struct PreparedScan {
-  std::shared_ptr<PointCloud> cloud;  // null: unusable (see error)
+  std::shared_ptr<PointCloud> cloud;      // null: unusable (see error)
   std::optional<KeyframeShape> keyframe;  // MappingPipeline::prepare's, unless the odometry will deskew the cloud
   double stamp = 0.0;
   double preprocess_ms = 0.0;
@@ -147,7 +147,7 @@ class MappingPipeline {
   std::vector<FrameFigures> frame_figures_;  // track_frame's
   std::vector<Eigen::Isometry3d> odometry_poses_;
   size_t unusable_scans_ = 0, odometry_failures_ = 0;  // track_frame's
-  size_t unusable_frames_ = 0;                        // map_frame's
+  size_t unusable_frames_ = 0;                         // map_frame's
   TimingStats preprocess_ms_, odometry_ms_;
   Stopwatch clock_;
   double seconds_ = 0.0;

@@ -10,13 +10,13 @@ namespace gcmap {
 
 struct Submap {
   int id = 0;
-  std::vector<int> keyframes;                        // frame indices
-  std::vector<Eigen::Isometry3d> T_submap_keyframe;  // fixed after the local optimization
-  std::vector<ScanContext> descriptors;              // per keyframe, when explicit loops are on
+  std::vector<int> keyframes;                                // frame indices
+  std::vector<Eigen::Isometry3d> T_submap_keyframe;          // fixed after the local optimization
+  std::vector<ScanContext> descriptors;                      // per keyframe, when explicit loops are on
   Eigen::Isometry3d T_odom = Eigen::Isometry3d::Identity();  // odometry pose of the submap origin
-  std::shared_ptr<const PointCloud> cloud;           // merged, in the submap frame
-  std::shared_ptr<const PointCloud> factor_source;   // subsample of cloud: source of its factors
-  std::shared_ptr<const GaussianVoxelMap> voxels;    // at global.voxel_resolution
+  std::shared_ptr<const PointCloud> cloud;                   // merged, in the submap frame
+  std::shared_ptr<const PointCloud> factor_source;           // subsample of cloud: source of its factors
+  std::shared_ptr<const GaussianVoxelMap> voxels;            // at global.voxel_resolution
 };
 
 // At most n points, by an even stride: deterministic and spatially uniform (points are in voxel order).

@@ -94,8 +94,7 @@ std::vector<Eigen::Isometry3d> SubmapBuilder::optimize_keyframes(const Eigen::Is
       auto source = config_.factor_source_points > 0
                         ? std::make_shared<const PointCloud>(evenly_subsampled(*open_[b].cloud, config_.factor_source_points))
                         : open_[b].cloud;
-      for (int a = 0; a < b; ++a)
-        g.add(std::make_shared<MatchingCostFactor>(b, a, source, open_[a].voxels, TrialVoxels::kept));
+      for (int a = 0; a < b; ++a) g.add(std::make_shared<MatchingCostFactor>(b, a, source, open_[a].voxels, TrialVoxels::kept));
     }
     stats_.factors.add(w.lap_ms());
     LMConfig lc;

@@ -37,8 +37,8 @@ class SubmapBuilder {
 
   struct Result {
     FrameStatus status = FrameStatus::unusable;
-    int anchor = -1;                // the keyframe (frame index) this frame is placed from; -1: none yet
-    std::optional<Submap> closed;   // a submap this frame completed
+    int anchor = -1;               // the keyframe (frame index) this frame is placed from; -1: none yet
+    std::optional<Submap> closed;  // a submap this frame completed
   };
   // Frames in order; a null or small cloud is unusable. A submap that a keyframe completes closes
   // with the next frame (or close()), so that its last keyframe can still be revised. shape: the

@@ -10,9 +10,9 @@ namespace gcmap {
 
 // Each key's meaning, unit and valid range: the config table (mapping/config.cpp), docs/config.md.
 struct OdometryConfig {
-  double voxel_resolution = 1.0;  // scan-to-model VGICP
-  int model_keyframes = 10;       // recent keyframes in the local model
-  double keyframe_distance = 1.0; // m
+  double voxel_resolution = 1.0;   // scan-to-model VGICP
+  int model_keyframes = 10;        // recent keyframes in the local model
+  double keyframe_distance = 1.0;  // m
   double keyframe_angle_deg = 10.0;
   int max_iterations = 32;
   // Constant-velocity prediction on real stamps: the last motion scaled by (this interval / the
@@ -41,8 +41,8 @@ const char* to_string(OdometryFailure f);
 struct RegistrationQuality {
   bool registered = false;  // false: no registration (first frame, unusable scan, external pose)
   Eigen::Vector3d translation_information = Eigen::Vector3d::Zero();  // eigenvalues, ascending (1/m^2)
-  Eigen::Vector3d weak_direction = Eigen::Vector3d::UnitX();  // unit, in the frame: the least constrained translation
-  double inlier_fraction = 0.0;  // of the frame's points
+  Eigen::Vector3d weak_direction = Eigen::Vector3d::UnitX();          // unit, in the frame: the least constrained translation
+  double inlier_fraction = 0.0;                                       // of the frame's points
   OdometryFailure failure = OdometryFailure::none;
   // Smallest over largest translation eigenvalue: 1 constrained alike in every direction, near 0 degenerate.
   double conditioning() const {
@@ -82,8 +82,8 @@ class Odometry {
   // odometry.retry_distance from the guess, or hardly any point matches, the guess is returned
   // and *failed set.
   // quality, when given, receives the figures of the registration returned (or why it failed).
-  Eigen::Isometry3d estimate(const PointCloud& frame, const Eigen::Isometry3d& guess, Guess kind,
-                             bool* failed = nullptr, RegistrationQuality* quality = nullptr) const;
+  Eigen::Isometry3d estimate(const PointCloud& frame, const Eigen::Isometry3d& guess, Guess kind, bool* failed = nullptr,
+                             RegistrationQuality* quality = nullptr) const;
   void accept(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T,
               std::optional<double> stamp = std::nullopt, bool failed = false);
   bool has_model() const { return model_ != nullptr; }

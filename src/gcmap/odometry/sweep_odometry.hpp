@@ -20,8 +20,8 @@ struct SweepRevision {
 struct SweepEstimate {
   Eigen::Isometry3d T_world_frame = Eigen::Isometry3d::Identity();  // at the scan stamp
   bool deskewed = false;
-  bool failed = false;  // registration rejected (see Odometry::estimate): placed by the prediction
-  bool lost = false;    // the last of failed frames in a row: the next usable frame starts a new model
+  bool failed = false;          // registration rejected (see Odometry::estimate): placed by the prediction
+  bool lost = false;            // the last of failed frames in a row: the next usable frame starts a new model
   RegistrationQuality quality;  // of the registration that placed the frame
   double deskew_shift = 0.0;    // m: how far deskewing moved the points, on average (0 when not deskewed)
   // At the second frame, the first sweep (it entered the odometry's model smeared); later, the
@@ -32,8 +32,7 @@ struct SweepEstimate {
 class SweepOdometry {
  public:
   // Reads preprocess.deskew and preprocess.redeskew of the preprocess section.
-  SweepOdometry(const OdometryConfig& config, const PreprocessConfig& preprocess,
-                std::shared_ptr<LinearizationBackend> backend);
+  SweepOdometry(const OdometryConfig& config, const PreprocessConfig& preprocess, std::shared_ptr<LinearizationBackend> backend);
 
   // The pose of a prepared scan (null: unusable, placed by the prediction) at `stamp`, stamps
   // non-decreasing. A scan with per-point times is deskewed in place into the sensor frame at the
@@ -93,7 +92,7 @@ class SweepOdometry {
   std::optional<FirstSweep> first_;  // until the second frame is registered
   // The previous frame's pose and stamp.
   std::optional<std::pair<Eigen::Isometry3d, double>> last_;
-  SweepReference reference_;  // the last frame's
+  SweepReference reference_;                   // the last frame's
   std::optional<MeanVelocity> previous_mean_;  // the last deskewed sweep's
   // The last two registered sweeps in a row, the later one still revisable (as it came, its
   // deskewed cloud, stamp and frame index); reset by a frame registered otherwise.

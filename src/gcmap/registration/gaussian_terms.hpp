@@ -35,10 +35,10 @@ constexpr int kSym[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
 // zero covariances: their fused covariance is singular and they drop out like degenerate points.
 struct Gathered {
   static constexpr int kCapacity = 128;
-  alignas(32) float q[3][kCapacity];         // source point in the target frame
-  alignas(32) float mean[3][kCapacity];      // target Gaussian
+  alignas(32) float q[3][kCapacity];     // source point in the target frame
+  alignas(32) float mean[3][kCapacity];  // target Gaussian
   alignas(32) float target[6][kCapacity];
-  alignas(32) float source[6][kCapacity];    // source covariance, source frame
+  alignas(32) float source[6][kCapacity];  // source covariance, source frame
   int size = 0;
 
   void push(const Eigen::Vector3f& qi, const Eigen::Vector3f& mu, const Eigen::Matrix3f& Ct, const Eigen::Matrix3f& Cs) {
@@ -176,8 +176,7 @@ TargetFrameSums accumulate_target_frame(const PointCloud& source, const Target& 
         const auto add_terms = [&](const LaneTerms& t, Lanes& err) {
           const Lanes(&W)[6] = t.W;
           const Lanes &qx = t.q[0], &qy = t.q[1], &qz = t.q[2];
-          const Lanes We[3] = {W[0] * t.e[0] + W[1] * t.e[1] + W[2] * t.e[2],
-                               W[1] * t.e[0] + W[3] * t.e[1] + W[4] * t.e[2],
+          const Lanes We[3] = {W[0] * t.e[0] + W[1] * t.e[1] + W[2] * t.e[2], W[1] * t.e[0] + W[3] * t.e[1] + W[4] * t.e[2],
                                W[2] * t.e[0] + W[4] * t.e[1] + W[5] * t.e[2]};
           err += t.e[0] * We[0] + t.e[1] * We[1] + t.e[2] * We[2];
           // QW, row by row (W symmetric).
@@ -189,8 +188,7 @@ TargetFrameSums accumulate_target_frame(const PointCloud& source, const Target& 
           }
           for (int a = 0; a < 3; ++a) {
             // (QW Q)(a, c) for c >= a; Q's columns are (0, qz, -qy), (-qz, 0, qx), (qy, -qx, 0).
-            const Lanes P[3] = {QW[a][1] * qz - QW[a][2] * qy, QW[a][2] * qx - QW[a][0] * qz,
-                                QW[a][0] * qy - QW[a][1] * qx};
+            const Lanes P[3] = {QW[a][1] * qz - QW[a][2] * qy, QW[a][2] * qx - QW[a][0] * qz, QW[a][0] * qy - QW[a][1] * qx};
             for (int c = a; c < 3; ++c) Hrr[kSym[a][c]] -= P[c];
             for (int c = 0; c < 3; ++c) Hrt[a * 3 + c] += QW[a][c];
           }
@@ -250,7 +248,9 @@ VgicpError sum_errors(const PointCloud& source, const Target& target, const Eige
         acc.first += for_each_lane_group(r.begin(), r.end(), gatherer(source, target, X, associate), R, add_error);
         return acc;
       },
-      [](Pair a, const Pair& b) { return Pair{a.first + b.first, a.second + b.second}; });
+      [](Pair a, const Pair& b) {
+        return Pair{a.first + b.first, a.second + b.second};
+      });
   return {sum.first, sum.second};
 }
 

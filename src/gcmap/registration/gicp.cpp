@@ -27,8 +27,8 @@ std::vector<int> find_correspondences(const PointCloud& source, const GicpTarget
   return out;
 }
 
-VgicpLinearization linearize_gicp(const PointCloud& source, const GicpTarget& target,
-                                  const Eigen::Isometry3d& T_target_source, const std::vector<int>& correspondences) {
+VgicpLinearization linearize_gicp(const PointCloud& source, const GicpTarget& target, const Eigen::Isometry3d& T_target_source,
+                                  const std::vector<int>& correspondences) {
   const TargetFrameSums sums = detail::accumulate_target_frame(
       source, target.cloud(), T_target_source, [&](size_t i, const Eigen::Vector3f&) { return correspondences[i]; });
   return expand_to_both_poses(sums, T_target_source);

@@ -27,8 +27,8 @@ std::vector<int> find_correspondences(const PointCloud& source, const GicpTarget
                                       const Eigen::Isometry3d& T_target_source, double max_distance);
 
 // Blocks as for VGICP (source i, target j), for the given correspondences.
-VgicpLinearization linearize_gicp(const PointCloud& source, const GicpTarget& target,
-                                  const Eigen::Isometry3d& T_target_source, const std::vector<int>& correspondences);
+VgicpLinearization linearize_gicp(const PointCloud& source, const GicpTarget& target, const Eigen::Isometry3d& T_target_source,
+                                  const std::vector<int>& correspondences);
 VgicpError evaluate_gicp(const PointCloud& source, const GicpTarget& target, const Eigen::Isometry3d& T_target_source,
                          const std::vector<int>& correspondences);
 

@@ -30,7 +30,7 @@ struct RegistrationResult {
 // association (re-associating at the trial pose would let newly matched points mask progress).
 RegistrationResult align_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
                                const Eigen::Isometry3d& init_T_target_source, const RegistrationConfig& config = {});
-RegistrationResult align_gicp(const PointCloud& source, const GicpTarget& target,
-                              const Eigen::Isometry3d& init_T_target_source, const RegistrationConfig& config = {});
+RegistrationResult align_gicp(const PointCloud& source, const GicpTarget& target, const Eigen::Isometry3d& init_T_target_source,
+                              const RegistrationConfig& config = {});
 
 }  // namespace gcmap

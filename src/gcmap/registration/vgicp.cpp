@@ -35,20 +35,18 @@ VgicpLinearization linearize_vgicp(const PointCloud& source, const GaussianVoxel
   return expand_to_both_poses(sums, T_target_source);
 }
 
-VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
-                          const Eigen::Isometry3d& T_target_source, std::span<const int> associations) {
+VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& T_target_source,
+                          std::span<const int> associations) {
   if (associations.size() != source.size()) throw Error("evaluate_vgicp: associations do not match the source");
   return detail::sum_errors(source, target, T_target_source, [&](size_t i, const Eigen::Vector3f&) { return associations[i]; });
 }
 
-VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
-                          const Eigen::Isometry3d& T_target_source) {
-  return detail::sum_errors(source, target, T_target_source,
-                            [&](size_t, const Eigen::Vector3f& q) { return target.lookup(q); });
+VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& T_target_source) {
+  return detail::sum_errors(source, target, T_target_source, [&](size_t, const Eigen::Vector3f& q) { return target.lookup(q); });
 }
 
-VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
-                          const Eigen::Isometry3d& T_target_source, const Eigen::Isometry3d& T_association) {
+VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& T_target_source,
+                          const Eigen::Isometry3d& T_association) {
   const PointTransform A(T_association);
   return detail::sum_errors(source, target, T_target_source,
                             [&](size_t i, const Eigen::Vector3f&) { return target.lookup(A * source.points[i]); });

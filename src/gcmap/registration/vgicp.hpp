@@ -32,22 +32,21 @@ struct VgicpError {
 // Parallel over points with a deterministic reduction: the same result for any thread count.
 VgicpLinearization linearize_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
                                    const Eigen::Isometry3d& T_target_source);
-VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
-                          const Eigen::Isometry3d& T_target_source);
+VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& T_target_source);
 
 // Error at T_target_source with each point associated to the voxel it falls in under T_association
 // (the linearization point). LM judges trial steps with this: re-associating at a trial pose adds
 // newly matched points to the sum, so a better alignment can show a larger error and LM would stall.
-VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
-                          const Eigen::Isometry3d& T_target_source, const Eigen::Isometry3d& T_association);
+VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& T_target_source,
+                          const Eigen::Isometry3d& T_association);
 
 // The same pair for a caller that can keep 4 bytes per source point (one registration; the global
 // graph's thousands of factors cannot): the linearization records each point's voxel (-1: none),
 // and the evaluation reuses it instead of transforming and looking up again. Same results.
 VgicpLinearization linearize_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
                                    const Eigen::Isometry3d& T_target_source, std::vector<int>& associations);
-VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
-                          const Eigen::Isometry3d& T_target_source, std::span<const int> associations);
+VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& T_target_source,
+                          std::span<const int> associations);
 
 // The accumulation is done in the target frame (B = de/dd_j = [-[q]x, I]); the source blocks follow
 // exactly from A = -B Ad(T_target_source), so a binary factor costs no more than a unary one.

@@ -119,7 +119,8 @@ std::optional<Eigen::Isometry3d> Localizer::global_initialization(const PointClo
   if (r.place < 0) return std::nullopt;
   const auto [j, k] = place_keyframe_[r.place];
   const Submap& s = prior_->submaps[j];
-  const Eigen::Isometry3d init = s.T_submap_keyframe[k] * Eigen::Isometry3d(Eigen::AngleAxisd(r.match.yaw, Eigen::Vector3d::UnitZ()));
+  const Eigen::Isometry3d init =
+      s.T_submap_keyframe[k] * Eigen::Isometry3d(Eigen::AngleAxisd(r.match.yaw, Eigen::Vector3d::UnitZ()));
   LoopConfig lc = config_.loop;
   lc.min_inlier_fraction = config_.localize.min_inlier_fraction;
   lc.max_inlier_rmse = config_.localize.max_inlier_rmse;
@@ -145,7 +146,8 @@ LocalizedFrame Localizer::add_scan(PointCloud scan, double stamp) {
     lost_since_ = 0;
   }
   // Deskewed in place by the odometry: registered on the map, it gives the pose at the stamp.
-  const std::shared_ptr<PointCloud> cloud = prepare_scan(std::move(scan), stamp, config_.preprocess, options_, backend_.get()).cloud;
+  const std::shared_ptr<PointCloud> cloud =
+      prepare_scan(std::move(scan), stamp, config_.preprocess, options_, backend_.get()).cloud;
   const SweepEstimate sweep = odometry_.track(cloud, stamp);
   odometry_poses_.push_back(sweep.T_world_frame);
   f.deskewed = sweep.deskewed;
@@ -162,7 +164,8 @@ LocalizedFrame Localizer::add_scan(PointCloud scan, double stamp) {
   if (usable && guess && track(cloud, *guess, held ? std::optional(last->T_map_frame) : std::nullopt, f)) {
     f.status = LocalizationStatus::tracking;
   } else if (usable && !smeared && lost_since_++ % config_.localize.relocalize_every == 0) {
-    if (const auto T = global_initialization(*cloud); T && track(cloud, *T, std::nullopt, f)) f.status = LocalizationStatus::relocalized;
+    if (const auto T = global_initialization(*cloud); T && track(cloud, *T, std::nullopt, f))
+      f.status = LocalizationStatus::relocalized;
   }
   if (f.status != LocalizationStatus::lost) {
     lost_since_ = 0;

@@ -23,9 +23,9 @@ struct LocalizedFrame {
   double stamp = 0.0;
   LocalizationStatus status = LocalizationStatus::lost;
   Eigen::Isometry3d T_map_frame = Eigen::Isometry3d::Identity();  // the prediction while lost
-  double map_overlap = 0.0;  // fraction of the frame's points in prior-map voxels
-  int prior_submaps = 0;     // prior submaps the frame was matched against
-  bool deskewed = false;     // motion-compensated by the odometry (per-point times, preprocess.deskew)
+  double map_overlap = 0.0;                                       // fraction of the frame's points in prior-map voxels
+  int prior_submaps = 0;                                          // prior submaps the frame was matched against
+  bool deskewed = false;  // motion-compensated by the odometry (per-point times, preprocess.deskew)
   double ms = 0.0;
 };
 
@@ -61,7 +61,7 @@ class Localizer {
   std::optional<Eigen::Isometry3d> initial_;
   std::vector<LocalizedFrame> frames_;
   std::vector<Eigen::Isometry3d> odometry_poses_;
-  int lost_since_ = 0;  // frames since the last global initialization attempt while lost
+  int lost_since_ = 0;           // frames since the last global initialization attempt while lost
   bool localized_once_ = false;  // a pose in the map is known (else no dead reckoning)
 };
 

@@ -54,10 +54,10 @@ class OwnRmse {
 // Where session b lies in the reference frame, from the best verified ScanContext match of its
 // keyframes with the places of the sessions placed so far.
 std::optional<std::pair<SessionPlacement, Eigen::Isometry3d>> find_placement(const std::vector<MergeInput>& in,
-                                                                              const std::vector<Eigen::Isometry3d>& T_ref_session,
-                                                                              const std::vector<bool>& connected, int b,
-                                                                              const MappingConfig& config,
-                                                                              OwnRmse& own_rmse, std::vector<SessionPlacement>& checks) {
+                                                                             const std::vector<Eigen::Isometry3d>& T_ref_session,
+                                                                             const std::vector<bool>& connected, int b,
+                                                                             const MappingConfig& config, OwnRmse& own_rmse,
+                                                                             std::vector<SessionPlacement>& checks) {
   ScanContextDatabase places;
   std::vector<Place> where;
   for (size_t a = 0; a < in.size(); ++a) {
@@ -80,10 +80,11 @@ std::optional<std::pair<SessionPlacement, Eigen::Isometry3d>> find_placement(con
   std::vector<Candidate> candidates;
   for (size_t q = 0; q < results.size(); ++q) {
     if (results[q].place < 0 || results[q].match.distance > config.merge.max_descriptor_distance) continue;
-    candidates.push_back({results[q].match.distance, results[q].match.yaw, query_keyframe[q].first, query_keyframe[q].second,
-                          results[q].place});
+    candidates.push_back(
+        {results[q].match.distance, results[q].match.yaw, query_keyframe[q].first, query_keyframe[q].second, results[q].place});
   }
-  std::stable_sort(candidates.begin(), candidates.end(), [](const Candidate& x, const Candidate& y) { return x.distance < y.distance; });
+  std::stable_sort(candidates.begin(), candidates.end(),
+                   [](const Candidate& x, const Candidate& y) { return x.distance < y.distance; });
   LoopConfig verification = config.loop;
   verification.min_inlier_fraction = config.merge.min_inlier_fraction;
   verification.max_inlier_rmse = std::numeric_limits<double>::infinity();  // decided below
@@ -98,7 +99,8 @@ std::optional<std::pair<SessionPlacement, Eigen::Isometry3d>> find_placement(con
     const LoopVerification v =
         verify_loop(*source.cloud, *target.cloud, place_match_guess(source, c.keyframe, target, p.keyframe, c.yaw), verification);
     const double allowed_rmse =
-        std::max(config.loop.max_inlier_rmse, config.merge.max_rmse_ratio * std::max(own_rmse(b, c.submap), own_rmse(p.session, p.submap)));
+        std::max(config.loop.max_inlier_rmse,
+                 config.merge.max_rmse_ratio * std::max(own_rmse(b, c.submap), own_rmse(p.session, p.submap)));
     const bool accepted = v.accepted && v.inlier_rmse <= allowed_rmse;
     checks.push_back({b, p.session, c.submap, p.submap, accepted, c.distance, v.inlier_fraction, v.inlier_rmse, allowed_rmse,
                       v.T_target_source});
@@ -139,8 +141,8 @@ void add_session_factors(const MergeInput& s, int offset, FactorGraph& graph, st
   for (const FactorRecord& f : s.factors) {
     const int source = offset + f.source, target = offset + f.target;
     if (f.kind == FactorKind::matching_cost) {
-      graph.add(std::make_shared<MatchingCostFactor>(source, target, s.submaps[f.source].factor_source, s.submaps[f.target].voxels,
-                                                     TrialVoxels::kept_per_optimization));
+      graph.add(std::make_shared<MatchingCostFactor>(source, target, s.submaps[f.source].factor_source,
+                                                     s.submaps[f.target].voxels, TrialVoxels::kept_per_optimization));
     } else {
       const Eigen::Isometry3d T_target_source = s.T_world_submap[f.target].inverse() * s.T_world_submap[f.source];
       graph.add(std::make_shared<RelativePoseFactor>(target, source, T_target_source, odometry_factor_information()));
@@ -175,10 +177,11 @@ size_t add_cross_factors(const std::vector<const Submap*>& submaps, const std::v
       T_target_source.push_back(values.at(static_cast<int>(v)).inverse() * values.at(static_cast<int>(u)));
     }
     if (near.empty()) continue;
-    for (const TargetOverlap& t : overlapping_targets(backend, submaps[u]->factor_source, targets, T_target_source, config.global.th_min)) {
+    for (const TargetOverlap& t :
+         overlapping_targets(backend, submaps[u]->factor_source, targets, T_target_source, config.global.th_min)) {
       const int v = near[t.index];
       graph.add(std::make_shared<MatchingCostFactor>(static_cast<int>(u), v, submaps[u]->factor_source, submaps[v]->voxels,
-                                                   TrialVoxels::kept_per_optimization));
+                                                     TrialVoxels::kept_per_optimization));
       records.push_back({FactorKind::matching_cost, static_cast<int>(u), v, t.overlap});
       ++added;
     }

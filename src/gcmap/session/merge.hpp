@@ -17,8 +17,8 @@ namespace gcmap {
 
 // One session as merge takes it (session/session.hpp reads it from disk).
 struct MergeInput {
-  std::string name;  // for messages (its folder)
-  std::vector<Submap> submaps;  // clouds, voxel maps, factor sources, keyframe descriptors
+  std::string name;                               // for messages (its folder)
+  std::vector<Submap> submaps;                    // clouds, voxel maps, factor sources, keyframe descriptors
   std::vector<Eigen::Isometry3d> T_world_submap;  // the session's optimized poses, in its frame
   std::vector<FactorRecord> factors;              // its global graph
   std::vector<Eigen::Isometry3d> trajectory;      // per frame, in its frame

@@ -120,7 +120,8 @@ Submap get_submap(Reader& in, Eigen::Isometry3d* T_world_submap) {
     s.T_submap_keyframe.push_back(in.pose());
   }
   const uint32_t rings = in.get<uint32_t>(), sectors = in.get<uint32_t>();
-  if (rings > 1000 || sectors > 10000) in.fail("implausible descriptor size " + std::to_string(rings) + " x " + std::to_string(sectors));
+  if (rings > 1000 || sectors > 10000)
+    in.fail("implausible descriptor size " + std::to_string(rings) + " x " + std::to_string(sectors));
   if (rings && sectors) {
     in.need(uint64_t(keyframes) * (rings * sectors + rings) * sizeof(float), "descriptors");
     for (uint32_t k = 0; k < keyframes; ++k) {
@@ -144,7 +145,8 @@ Submap get_submap(Reader& in, Eigen::Isometry3d* T_world_submap) {
     in.array(v, 6);
     m << v[0], v[1], v[2], v[1], v[3], v[4], v[2], v[4], v[5];
   }
-  if (!cloud->points.empty() && remove_non_finite(*cloud) > 0) in.fail("submap " + std::to_string(s.id) + " has non-finite points");
+  if (!cloud->points.empty() && remove_non_finite(*cloud) > 0)
+    in.fail("submap " + std::to_string(s.id) + " has non-finite points");
   s.cloud = std::move(cloud);
   return s;
 }
@@ -182,9 +184,7 @@ void read_manifest(const std::string& path, Session& s, size_t* frames, size_t* 
       if (!f.IsSequence() || f.size() != 4) throw Error(path + ": a factor must be [kind, source, target, overlap]");
       s.factors.push_back({parse_factor_kind(f[0].as<std::string>(), path), f[1].as<int>(), f[2].as<int>(), f[3].as<double>()});
     }
-  } catch (const YAML::Exception& e) {
-    throw Error(path + ": unreadable manifest (" + std::string(e.what()) + ")");
-  }
+  } catch (const YAML::Exception& e) { throw Error(path + ": unreadable manifest (" + std::string(e.what()) + ")"); }
 }
 
 // Voxel maps and factor sources, as the run that wrote the session made them.
@@ -268,7 +268,9 @@ Session read_session(const std::string& dir, const std::function<void(size_t don
   read_manifest((root / "manifest.yaml").string(), s, &frames, &submaps);
   s.config = MappingConfig::load((root / "config.yaml").string());
   const Trajectory t = read_trajectory((root / "trajectory.tum").string());
-  if (t.size() != frames) throw Error((root / "trajectory.tum").string() + ": " + std::to_string(t.size()) + " poses, the manifest says " + std::to_string(frames) + " frames");
+  if (t.size() != frames)
+    throw Error((root / "trajectory.tum").string() + ": " + std::to_string(t.size()) + " poses, the manifest says " +
+                std::to_string(frames) + " frames");
   s.trajectory = t.poses;
   s.stamps = t.stamps;
   const std::string path = (root / "submaps.bin").string();

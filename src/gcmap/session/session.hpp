@@ -33,8 +33,8 @@ struct Session {
   std::vector<Submap> submaps;
   std::vector<Eigen::Isometry3d> T_world_submap;  // optimized, in the output frame
   std::vector<SessionFactor> factors;
-  std::vector<double> stamps;                   // per frame
-  std::vector<Eigen::Isometry3d> trajectory;    // per frame
+  std::vector<double> stamps;                 // per frame
+  std::vector<Eigen::Isometry3d> trajectory;  // per frame
 };
 
 // The session of a finished pipeline (poses in its output frame); stamps per frame.

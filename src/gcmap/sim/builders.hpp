@@ -12,8 +12,8 @@ namespace gcmap::sim {
 // Buildings, street furniture, parked cars and garden walls in every block between the streets on
 // the grid lines of [lo, hi] (in blocks); flat facades only when feature_poor; blocks x in
 // [tunnel.x(), tunnel.y()) one flat wall joined across the cross streets.
-void build_city_blocks(World& world, uint64_t seed, float block, Eigen::Vector2i lo, Eigen::Vector2i hi,
-                       bool feature_poor, Eigen::Vector2i tunnel = Eigen::Vector2i::Zero());
+void build_city_blocks(World& world, uint64_t seed, float block, Eigen::Vector2i lo, Eigen::Vector2i hi, bool feature_poor,
+                       Eigen::Vector2i tunnel = Eigen::Vector2i::Zero());
 
 // Raised sidewalks (15 cm kerbs) around every block of the grid.
 void add_sidewalks(World& world, float block, Eigen::Vector2i lo, Eigen::Vector2i hi);

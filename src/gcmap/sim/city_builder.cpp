@@ -80,7 +80,8 @@ void add_street_furniture(const BlockContext& ctx) {
         const int blobs = 4 + static_cast<int>(4 * u(rng));
         for (int k = 0; k < blobs; ++k) {
           const Eigen::Vector3f off(2.f * u(rng) - 1.f, 2.f * u(rng) - 1.f, 1.2f * u(rng));
-          world.add_sphere({Eigen::Vector3f(p.x(), p.y(), g + trunk + 1.f) + 1.3f * off, 0.7f + 0.9f * u(rng), 0.15f, kVegetation});
+          world.add_sphere(
+              {Eigen::Vector3f(p.x(), p.y(), g + trunk + 1.f) + 1.3f * off, 0.7f + 0.9f * u(rng), 0.15f, kVegetation});
         }
       } else {  // parked car on the street side of the curb
         const float off = along_x ? (side == 0 ? -2.2f : 2.2f) : (side == 2 ? -2.2f : 2.2f);
@@ -88,7 +89,7 @@ void add_street_furniture(const BlockContext& ctx) {
         const Eigen::Vector2f half = along_x ? Eigen::Vector2f(2.2f, 0.9f) : Eigen::Vector2f(0.9f, 2.2f);
         const float gq = world.ground_height(q.x(), q.y());
         world.add_box({Eigen::Vector3f(q.x() - half.x(), q.y() - half.y(), gq - 0.5f),
-                 Eigen::Vector3f(q.x() + half.x(), q.y() + half.y(), gq + 1.4f + 0.3f * u(rng)), 0.8f, kCar});
+                       Eigen::Vector3f(q.x() + half.x(), q.y() + half.y(), gq + 1.4f + 0.3f * u(rng)), 0.8f, kCar});
       }
     }
   }
@@ -96,8 +97,8 @@ void add_street_furniture(const BlockContext& ctx) {
 
 }  // namespace
 
-void build_city_blocks(World& world, uint64_t seed, float block, Eigen::Vector2i lo, Eigen::Vector2i hi,
-                       bool feature_poor, Eigen::Vector2i tunnel) {
+void build_city_blocks(World& world, uint64_t seed, float block, Eigen::Vector2i lo, Eigen::Vector2i hi, bool feature_poor,
+                       Eigen::Vector2i tunnel) {
   std::mt19937_64 rng(seed);
   Uniform u(0.f, 1.f);
   const float street_half = kStreetHalf, sidewalk = kSidewalkWidth;

@@ -67,8 +67,8 @@ double Drive::arclength(double frame) const {
     const double dt = knot_t_[j] - knot_t_[j - 1];
     return knot_s_[j] + (dt > 0 ? (t - knot_t_[j]) * (knot_s_[j] - knot_s_[j - 1]) / dt : 0.0);
   }
-  const size_t j = std::clamp<size_t>(std::upper_bound(knot_t_.begin(), knot_t_.end(), t) - knot_t_.begin(), 1,
-                                      knot_t_.size() - 1);
+  const size_t j =
+      std::clamp<size_t>(std::upper_bound(knot_t_.begin(), knot_t_.end(), t) - knot_t_.begin(), 1, knot_t_.size() - 1);
   const double dt = knot_t_[j] - knot_t_[j - 1];
   const double f = dt > 0 ? std::clamp((t - knot_t_[j - 1]) / dt, 0.0, 1.0) : 1.0;
   return knot_s_[j - 1] + f * (knot_s_[j] - knot_s_[j - 1]);

@@ -65,7 +65,8 @@ void Simulator::cast_group(size_t frame, int g, const std::vector<ActiveMover>& 
     const float drop = u(rng);
     const float n = config_.noise > 0 ? noise(rng) : 0.f;
     // A miscalibrated beam points elsewhere than the direction the points are computed with.
-    const Eigen::Vector3f d = R * (realism_.calibration ? sensor_.direction(g, b, sweep_start, calibration_.elevation_bias_rad[b]) : d_local);
+    const Eigen::Vector3f d =
+        R * (realism_.calibration ? sensor_.direction(g, b, sweep_start, calibration_.elevation_bias_rad[b]) : d_local);
     bool found = world_->raycast(o, d, sensor_.max_range, hit, RayContext{static_cast<float>(sweep_start + dt), extra.next()});
     uint32_t label = hit.label;
     for (size_t k = 0; k < num_near; ++k) {

@@ -30,7 +30,7 @@ std::vector<Eigen::Vector2f> other_route(const std::string& name, int route, con
     from({{0.5f, 0}, {1, 0}, {1, 1}, {0, 1}, {0, 0}, {0.75f, 0}});  // the same loop, from 20 m further
   } else if (name == "small") {
     from({{0.75f, 0}, {2, 0}, {2, 1}, {1, 1}, {1, 0}, {1.25f, 0}});  // the next block, from 30 m into route 0
-  } else if (route == 1) {  // city
+  } else if (route == 1) {                                           // city
     from({{5, 1}, {3, 1}, {3, 3}, {1, 3}, {1, -1}, {4, -1}, {4, 2}});
   } else {
     from({{-1, 5}, {4, 5}, {4, 2}, {0, 2}, {0, 0}, {-1, 0}});
@@ -77,13 +77,15 @@ Scenario make_scenario(const std::string& name, int frames, int route) {
     // 3.7 km over a 500 m x 500 m grid of 100 m blocks: a 1.2 km loop, then streets of it again in
     // the same direction (from 1.2 km and 3.4 km) and in the opposite one (from 2.6 km).
     s.block = 100.f;
-    add_waypoints(s, {{0, 0}, {3, 0}, {3, 3}, {0, 3}, {0, 0}, {2, 0}, {2, 5}, {5, 5}, {5, 3}, {3, 3}, {3, 0},
-                      {1, 0}, {1, 3}, {0, 3}, {0, 1}});
+    add_waypoints(
+        s,
+        {{0, 0}, {3, 0}, {3, 3}, {0, 3}, {0, 0}, {2, 0}, {2, 5}, {5, 5}, {5, 3}, {3, 3}, {3, 0}, {1, 0}, {1, 3}, {0, 3}, {0, 1}});
     s.realistic = true;
     s.cruise_min = 8.5f, s.cruise_max = 14.5f, s.stop_every = 2;
     s.terrain = Terrain{6.f, 120.f, 4.f, 90.f, kRoad, 0.1f, 160};
-    s.description = "3.7 km, 10 Hz, through a 500 m x 500 m street grid with slopes, traffic and stops; "
-                    "revisits in both directions, one after 2.6 km";
+    s.description =
+        "3.7 km, 10 Hz, through a 500 m x 500 m street grid with slopes, traffic and stops; "
+        "revisits in both directions, one after 2.6 km";
   } else if (name == "highway") {
     s.scene = SceneKind::highway;
     s.block = 100.f;
@@ -92,8 +94,9 @@ Scenario make_scenario(const std::string& name, int frames, int route) {
     s.corner_radius = 250.f, s.lane_offset = 5.75f;
     s.cruise_min = 25.f, s.cruise_max = 30.f, s.rest_at_ends = false;
     s.terrain = Terrain{4.f, 400.f, 3.f, 300.f, kRoad, 0.1f, 160};
-    s.description = "2.1 km of divided highway at 25-30 m/s: guardrails, sparse trees, few buildings, fast traffic "
-                    "(degenerate along the road)";
+    s.description =
+        "2.1 km of divided highway at 25-30 m/s: guardrails, sparse trees, few buildings, fast traffic "
+        "(degenerate along the road)";
   } else if (name == "forest") {
     s.scene = SceneKind::forest;
     s.block = 30.f;
@@ -102,8 +105,9 @@ Scenario make_scenario(const std::string& name, int frames, int route) {
     s.corner_radius = 10.f, s.lane_offset = 0.f;
     s.cruise_min = 4.f, s.cruise_max = 7.f, s.lateral_accel = 1.5f;
     s.terrain = Terrain{3.f, 45.f, 2.5f, 35.f, kTerrain, 0.15f, 200};
-    s.description = "a 0.9 km hilly forest trail loop with hikers and cyclists: trees, bushes, rocks, "
-                    "partial returns through canopies";
+    s.description =
+        "a 0.9 km hilly forest trail loop with hikers and cyclists: trees, bushes, rocks, "
+        "partial returns through canopies";
   } else {
     throw Error("--scenario: expected loop, small, corridor, tunnel, city, highway or forest, got '" + name + "'");
   }

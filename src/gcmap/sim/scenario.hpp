@@ -67,7 +67,7 @@ class Drive {
   std::vector<double> arc_;
   double length_ = 0.0;
   size_t num_frames_ = 0;
-  bool even_ = true;  // constant speed: frames evenly spaced along the route
+  bool even_ = true;                     // constant speed: frames evenly spaced along the route
   std::vector<double> knot_t_, knot_s_;  // speed profile: arc length at times (piecewise linear)
 };
 

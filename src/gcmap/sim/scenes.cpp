@@ -55,8 +55,8 @@ void build_highway(World& world, uint64_t seed, const std::vector<Eigen::Vector2
     for (float off : {-12.f, 12.f}) {  // guardrails: a rail on posts
       const Eigen::Vector2f q = left_of(st, off), post = left_of(st, off + (off > 0 ? 0.2f : -0.2f));
       const float g = world.ground_height(q.x(), q.y());
-      world.add_oriented_box({Eigen::Vector3f(q.x(), q.y(), g + 0.6f), Eigen::Vector3f(0.5f * rail_step + 0.05f, 0.05f, 0.17f),
-                              yaw, 0.5f, kFence});
+      world.add_oriented_box(
+          {Eigen::Vector3f(q.x(), q.y(), g + 0.6f), Eigen::Vector3f(0.5f * rail_step + 0.05f, 0.05f, 0.17f), yaw, 0.5f, kFence});
       world.add_cylinder({post, 0.08f, g - 0.5f, g + 0.75f, 0.4f, kFence});
     }
     const float g0 = world.ground_height(st.p.x(), st.p.y());  // concrete median barrier

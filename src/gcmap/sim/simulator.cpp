@@ -98,7 +98,9 @@ Simulator::Simulator(const SimulationConfig& config)
     : config_(config),
       drive_seed_(config.route == 0 ? config.seed : hash_key(config.seed, 0x2047E, static_cast<uint64_t>(config.route))),
       scenario_(make_scenario(config)),
-      realism_(config.realism ? *config.realism : scenario_.realistic ? RealismConfig::all() : RealismConfig::none()),
+      realism_(config.realism        ? *config.realism
+               : scenario_.realistic ? RealismConfig::all()
+                                     : RealismConfig::none()),
       sensor_(sensor_model(config.sensor)),
       calibration_(make_calibration(sensor_, config.seed)) {
   if (!(config.noise >= 0.0) || config.noise > 1.0) throw Error("--noise: must be in [0, 1] m");

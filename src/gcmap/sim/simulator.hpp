@@ -89,8 +89,9 @@ class Simulator {
 };
 
 // Writes DIR/velodyne/NNNNNN.bin, poses.txt (sensor frame at each stamp, first pose identity),
-// poses_world.txt (the same in the world frame that all routes share), times.txt, scenario.json and, with the realism that makes them, point_times/NNNNNN.bin (float32
-// seconds after the stamp, one per point) and labels/NNNNNN.label. Returns the number of points.
+// poses_world.txt (the same in the world frame that all routes share), times.txt, scenario.json and, with the realism that makes
+// them, point_times/NNNNNN.bin (float32 seconds after the stamp, one per point) and labels/NNNNNN.label. Returns the number of
+// points.
 size_t write_simulation(const std::string& dir, const SimulationConfig& config, bool quiet = true);
 
 }  // namespace gcmap::sim

@@ -112,7 +112,8 @@ Traffic make_city_traffic(uint64_t seed, float block, Eigen::Vector2i lo, Eigen:
       const float len = (q - p).norm();
       for (int k = 0; k < 4; ++k) movers.push_back(make_mover(r, id, len, kMovingCar)), movers.back().offset = 2.f;
       movers.push_back(make_mover(r, id, len, kMovingBicyclist)), movers.back().offset = 3.9f;
-      for (int k = 0; k < 6; ++k) movers.push_back(make_mover(r, id, len, kMovingPerson)), movers.back().offset = r.uniform(7.8f, 9.2f);
+      for (int k = 0; k < 6; ++k)
+        movers.push_back(make_mover(r, id, len, kMovingPerson)), movers.back().offset = r.uniform(7.8f, 9.2f);
     }
   };
   for (int k = lo.x() - 1; k <= hi.x() + 1; ++k) add_street({k * block, c}, {k * block, e});

@@ -11,7 +11,7 @@ namespace gcmap::sim {
 
 struct Mover {
   uint32_t path = 0;
-  float offset = 0.f;       // lateral, positive to the right of the path's direction
+  float offset = 0.f;           // lateral, positive to the right of the path's direction
   float s0 = 0.f, speed = 0.f;  // arc length at time 0 (wraps around the path), m/s
   Eigen::Vector3f half{2.2f, 0.9f, 0.75f};
   float reflectivity = 0.5f;

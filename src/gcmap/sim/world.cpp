@@ -38,7 +38,8 @@ void World::index(int kind, int id, Eigen::Vector2f lo, Eigen::Vector2f hi) {
   const int cx1 = std::min(nx_ - 1, static_cast<int>((hi.x() - origin_.x()) / cell_));
   const int cy1 = std::min(ny_ - 1, static_cast<int>((hi.y() - origin_.y()) / cell_));
   for (int x = cx0; x <= cx1; ++x)
-    for (int y = cy0; y <= cy1; ++y) build_cells_[static_cast<size_t>(y) * nx_ + x].push_back((uint32_t(kind) << 28) | uint32_t(id));
+    for (int y = cy0; y <= cy1; ++y)
+      build_cells_[static_cast<size_t>(y) * nx_ + x].push_back((uint32_t(kind) << 28) | uint32_t(id));
 }
 
 void World::add_box(const Box& b) {
@@ -72,8 +73,8 @@ bool World::ground_hit(const Eigen::Vector3f& o, const Eigen::Vector3f& d, float
   return false;
 }
 
-bool intersect_box(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, const Eigen::Vector3f& o,
-                   const Eigen::Vector3f& inv, float& t, int& axis) {
+bool intersect_box(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, const Eigen::Vector3f& o, const Eigen::Vector3f& inv,
+                   float& t, int& axis) {
   float t0 = 0.f, t1 = 1e30f;
   axis = 0;
   for (int k = 0; k < 3; ++k) {
@@ -151,8 +152,7 @@ bool World::hit_item(uint32_t item, const Eigen::Vector3f& o, const Eigen::Vecto
   return true;
 }
 
-bool World::raycast(const Eigen::Vector3f& o, const Eigen::Vector3f& d, float max_range, Hit& hit,
-                    const RayContext& ctx) const {
+bool World::raycast(const Eigen::Vector3f& o, const Eigen::Vector3f& d, float max_range, Hit& hit, const RayContext& ctx) const {
   float t_best = max_range;
   bool found = false;
   float tg;

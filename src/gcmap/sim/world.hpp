@@ -77,8 +77,8 @@ struct RayContext {
 };
 
 // Slab test of an axis-aligned box; false when the origin is inside. Shared with the traffic.
-bool intersect_box(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, const Eigen::Vector3f& o,
-                   const Eigen::Vector3f& inv_dir, float& t, int& axis);
+bool intersect_box(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, const Eigen::Vector3f& o, const Eigen::Vector3f& inv_dir,
+                   float& t, int& axis);
 
 class World {
  public:

@@ -103,7 +103,7 @@ class FrameSink {
     layout.time = sim.realism().motion_distortion ? out.time : PointTimeConvention::none;
     if (out.message == ScanMessage::livox_custom_msg) {
       layout.time = PointTimeConvention::livox_custom_msg;  // offset_time 0 without motion distortion
-      layout.reflectivity_scale = 255;                       // the simulator's intensities are in [0, 1]
+      layout.reflectivity_scale = 255;                      // the simulator's intensities are in [0, 1]
     }
     BagWriterOptions wo;
     wo.compression = out.compression;
@@ -221,20 +221,25 @@ void write_metadata(const fs::path& dir, const Simulator& sim, const SimulationC
   if (r.any()) {  // the ideal scenarios keep their historical file
     j["realism"] = r.to_string();
     j["stamp"] = "sweep_start";
-    j["stamps"] = "times.txt and poses.txt are at the start of each sweep; points are in the sensor frame at their own firing time";
-    if (r.motion_distortion && !out.bag) j["point_times"] = "point_times/NNNNNN.bin: float32 little-endian, one per point, seconds after the stamp, in [0, 0.1)";
-    if (r.labels) j["labels"] = "labels/NNNNNN.label: uint32 per point, class (SemanticKITTI) | instance << 16; moving classes 252-259";
+    j["stamps"] =
+        "times.txt and poses.txt are at the start of each sweep; points are in the sensor frame at their own firing time";
+    if (r.motion_distortion && !out.bag)
+      j["point_times"] = "point_times/NNNNNN.bin: float32 little-endian, one per point, seconds after the stamp, in [0, 0.1)";
+    if (r.labels)
+      j["labels"] = "labels/NNNNNN.label: uint32 per point, class (SemanticKITTI) | instance << 16; moving classes 252-259";
     if (r.moving_objects) j["moving_objects"] = sim.traffic().size();
   }
   if (out.bag) {
     j["bag"] = fs::path(simulated_bag_path(dir.string(), *out.bag)).filename().string();
     j["bag_format"] = bag_format_name(*out.bag);
     const bool livox = out.message == ScanMessage::livox_custom_msg;
-    const std::string type = !livox ? "sensor_msgs/PointCloud2"
-                             : *out.bag == BagFormat::ros1 ? "livox_ros_driver/CustomMsg" : "livox_ros_driver2/msg/CustomMsg";
+    const std::string type = !livox                        ? "sensor_msgs/PointCloud2"
+                             : *out.bag == BagFormat::ros1 ? "livox_ros_driver/CustomMsg"
+                                                           : "livox_ros_driver2/msg/CustomMsg";
     j["topic"] = "/points: " + type + ", header stamps as in times.txt, recorded at the end of each sweep";
-    j["point_time_field"] = livox ? "offset_time: uint32 ns after timebase, the header stamp (Livox CustomMsg)"
-                            : r.motion_distortion ? time_field_note(out.time) : "none";
+    j["point_time_field"] = livox                 ? "offset_time: uint32 ns after timebase, the header stamp (Livox CustomMsg)"
+                            : r.motion_distortion ? time_field_note(out.time)
+                                                  : "none";
     if (livox) j["reflectivity"] = "uint8, the simulated intensity in [0, 1] x 255, rounded";
   }
   if (out.imu) j["imu"] = imu_json(*out.imu, out);
@@ -286,7 +291,7 @@ ScanMessage parse_scan_message(const std::string& text, const std::string& key) 
 }
 
 Compression parse_compression(const std::string& text, std::optional<BagFormat> bag, const std::string& key) {
-  const Compression c = text == "none" ? Compression::none
+  const Compression c = text == "none"   ? Compression::none
                         : text == "zstd" ? Compression::zstd
                         : text == "lz4"  ? Compression::lz4
                         : text == "bz2"  ? Compression::bz2
@@ -306,8 +311,7 @@ size_t write_simulation(const std::string& dir_name, const SimulationConfig& con
   return write_simulation(dir_name, config, OutputOptions{}, quiet);
 }
 
-size_t write_simulation(const std::string& dir_name, const SimulationConfig& config, const OutputOptions& output,
-                        bool quiet) {
+size_t write_simulation(const std::string& dir_name, const SimulationConfig& config, const OutputOptions& output, bool quiet) {
   Simulator sim(config);
   const fs::path dir(dir_name);
   FrameSink sink(dir, sim, output);
@@ -336,9 +340,8 @@ size_t write_simulation(const std::string& dir_name, const SimulationConfig& con
   sink.close();
   write_metadata(dir, sim, config, output, total);
   if (!quiet) {
-    const std::string scans =
-        output.bag ? fs::path(simulated_bag_path(dir_name, *output.bag)).filename().string() + " (/points)"
-                   : std::string("velodyne/") + (sim.realism().motion_distortion ? ", point_times/" : "");
+    const std::string scans = output.bag ? fs::path(simulated_bag_path(dir_name, *output.bag)).filename().string() + " (/points)"
+                                         : std::string("velodyne/") + (sim.realism().motion_distortion ? ", point_times/" : "");
     spdlog::info(
         "wrote {} scans ({:.0f} points each on average) of the '{}' scenario to {}: {}{}, poses.txt, "
         "poses_world.txt, times.txt, scenario.json{}",

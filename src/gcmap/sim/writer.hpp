@@ -54,7 +54,6 @@ std::string simulated_bag_path(const std::string& dir, BagFormat format);
 // CustomMsg (Error for the KITTI layout), header stamps the
 // stamps of times.txt (the start of each sweep, 0.1 s apart from 0), recorded at the end of each
 // sweep; poses.txt, times.txt, scenario.json and labels/ in DIR beside the bag.
-size_t write_simulation(const std::string& dir, const SimulationConfig& config, const OutputOptions& output,
-                        bool quiet = true);
+size_t write_simulation(const std::string& dir, const SimulationConfig& config, const OutputOptions& output, bool quiet = true);
 
 }  // namespace gcmap::sim

@@ -17,8 +17,8 @@ enum class Align { left, center, right };
 
 class Canvas {
  public:
-  explicit Canvas(Image& image);                        // draws onto the image's pixels
-  Canvas(int width, int height, FigureFormat format);   // a figure on a white page
+  explicit Canvas(Image& image);                       // draws onto the image's pixels
+  Canvas(int width, int height, FigureFormat format);  // a figure on a white page
   ~Canvas();
   Canvas(const Canvas&) = delete;
   Canvas& operator=(const Canvas&) = delete;
@@ -27,7 +27,7 @@ class Canvas {
   void colour(Rgb c, double alpha = 1.0);
   void line(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double width);
   void dot(const Eigen::Vector2d& centre, double radius);  // filled
-  void rect(double x, double y, double w, double h);        // filled
+  void rect(double x, double y, double w, double h);       // filled
   // Text with its baseline at y; `size` in pixels; rotated 90 deg counter-clockwise when vertical.
   void text(double x, double y, const std::string& s, double size, Align align = Align::left, bool vertical = false);
   double text_width(const std::string& s, double size);

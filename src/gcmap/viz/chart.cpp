@@ -92,7 +92,8 @@ void draw_line_chart(Canvas& c, const LineChart& chart, const Rect& a) {
     ry.widen_to(m_per_px * plot.h);
   }
   auto px = [&](double x, double y) {
-    return Eigen::Vector2d(plot.x + (x - rx.lo) / (rx.hi - rx.lo) * plot.w, plot.y + plot.h - (y - ry.lo) / (ry.hi - ry.lo) * plot.h);
+    return Eigen::Vector2d(plot.x + (x - rx.lo) / (rx.hi - rx.lo) * plot.w,
+                           plot.y + plot.h - (y - ry.lo) / (ry.hi - ry.lo) * plot.h);
   };
   draw_title(c, chart.title, a);
   const auto xt = nice_ticks(rx.lo, rx.hi, 6), yt = nice_ticks(ry.lo, ry.hi, 5);

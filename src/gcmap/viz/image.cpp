@@ -40,9 +40,7 @@ void append_png(png_structp png, png_bytep data, png_size_t length) {
   bool failed = false;
   try {
     static_cast<std::string*>(png_get_io_ptr(png))->append(reinterpret_cast<const char*>(data), length);
-  } catch (...) {
-    failed = true;
-  }
+  } catch (...) { failed = true; }
   if (failed) png_error(png, "out of memory");
 }
 }  // namespace

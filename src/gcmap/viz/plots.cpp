@@ -23,7 +23,8 @@ std::string fmt(const char* f, double v) {
 }
 
 WrittenFile fig10(const RunStats& stats, const std::string& path, FigureFormat format) {
-  LineChart time{"Global optimization per new submap (Fig. 10)", "submaps in the graph", "optimization time [ms]", {}, false, true};
+  LineChart time{
+      "Global optimization per new submap (Fig. 10)", "submaps in the graph", "optimization time [ms]", {}, false, true};
   LineChart factors{"Global factors", "submaps in the graph", "factors", {}, false, true};
   Series t{"time", {}, {}, chart_colours::estimate, true}, f{"factors", {}, {}, chart_colours::odometry, true};
   for (const InsertionStats& p : stats.per_submap) {
@@ -42,17 +43,20 @@ WrittenFile fig10(const RunStats& stats, const std::string& path, FigureFormat f
     draw_line_chart(c, factors, {0, 450, kWidth, 450});
   }
   write_figure(path, c);
-  return {path, "global optimization time and factors against submaps (" + std::to_string(stats.per_submap.size()) + " insertions)"};
+  return {path,
+          "global optimization time and factors against submaps (" + std::to_string(stats.per_submap.size()) + " insertions)"};
 }
 
 WrittenFile timings(const RunStats& stats, const std::string& path, FigureFormat format) {
-  BarChart chart{"Processing time per call of each module (Table III)", "mean time per call [ms] (whisker: one standard deviation)", {}};
+  BarChart chart{
+      "Processing time per call of each module (Table III)", "mean time per call [ms] (whisker: one standard deviation)", {}};
   for (const ModuleTiming& m : stats.timing) {
     if (!m.count) continue;
     std::string name = m.module;
     for (char& ch : name) ch = ch == '_' ? ' ' : ch;
-    chart.bars.push_back({name, m.mean_ms, m.std_ms,
-                          fmt("%.1f", m.mean_ms) + " +- " + fmt("%.1f", m.std_ms) + " ms, " + std::to_string(m.count) + " calls"});
+    chart.bars.push_back(
+        {name, m.mean_ms, m.std_ms,
+         fmt("%.1f", m.mean_ms) + " +- " + fmt("%.1f", m.std_ms) + " ms, " + std::to_string(m.count) + " calls"});
   }
   const int h = 140 + 45 * static_cast<int>(std::max<size_t>(chart.bars.size(), 2));
   Canvas c(kWidth, h, format);
@@ -71,7 +75,8 @@ std::pair<int, int> ground_plane(const Poses& gt) {
   return {up == 0 ? 1 : 0, up == 2 ? 1 : 2};
 }
 
-Series positions(const std::string& label, const Poses& poses, const Eigen::Isometry3d& T_gt_est, std::pair<int, int> axes, Rgb colour) {
+Series positions(const std::string& label, const Poses& poses, const Eigen::Isometry3d& T_gt_est, std::pair<int, int> axes,
+                 Rgb colour) {
   Series s{label, {}, {}, colour, false};
   for (const auto& T : poses) {
     const Eigen::Vector3d p = T_gt_est * T.translation();
@@ -84,15 +89,22 @@ Series positions(const std::string& label, const Poses& poses, const Eigen::Isom
 WrittenFile trajectories(const Poses& gt, const Poses& est, const Poses* odom, const std::string& path, FigureFormat format) {
   static const char* names[] = {"x [m]", "y [m]", "z [m]"};
   const auto axes = ground_plane(gt);
-  LineChart chart{"Trajectory, top-down (estimates aligned to the ground truth, SE(3))", names[axes.first], names[axes.second], {}, true, false};
+  LineChart chart{"Trajectory, top-down (estimates aligned to the ground truth, SE(3))",
+                  names[axes.first],
+                  names[axes.second],
+                  {},
+                  true,
+                  false};
   chart.series.push_back(positions("ground truth", gt, Eigen::Isometry3d::Identity(), axes, chart_colours::ground_truth));
   chart.series.back().width = 6.0;  // under the estimates, which often cover it
   if (odom) {
     const AbsoluteError a = absolute_trajectory_error(gt, *odom);
-    chart.series.push_back(positions("odometry (ATE " + fmt("%.3f", a.rmse) + " m)", *odom, a.T_gt_est, axes, chart_colours::odometry));
+    chart.series.push_back(
+        positions("odometry (ATE " + fmt("%.3f", a.rmse) + " m)", *odom, a.T_gt_est, axes, chart_colours::odometry));
   }
   const AbsoluteError a = absolute_trajectory_error(gt, est);
-  chart.series.push_back(positions("global optimization (ATE " + fmt("%.3f", a.rmse) + " m)", est, a.T_gt_est, axes, chart_colours::estimate));
+  chart.series.push_back(
+      positions("global optimization (ATE " + fmt("%.3f", a.rmse) + " m)", est, a.T_gt_est, axes, chart_colours::estimate));
   Canvas c(kWidth, kWidth, format);
   draw_line_chart(c, chart, {0, 0, kWidth, kWidth});
   write_figure(path, c);
@@ -117,11 +129,15 @@ WrittenFile kitti_errors(const Poses& gt, const Poses& est, const Poses* odom, c
   t.x_max = r.x_max = 850.0;
   if (odom) {
     const KittiError ko = kitti_relative_error(gt, *odom);
-    t.series.push_back(per_length("odometry (mean " + fmt("%.3f", ko.translation_percent) + " %)", ko, false, chart_colours::odometry));
-    r.series.push_back(per_length("odometry (mean " + fmt("%.4f", ko.rotation_deg_per_100m) + ")", ko, true, chart_colours::odometry));
+    t.series.push_back(
+        per_length("odometry (mean " + fmt("%.3f", ko.translation_percent) + " %)", ko, false, chart_colours::odometry));
+    r.series.push_back(
+        per_length("odometry (mean " + fmt("%.4f", ko.rotation_deg_per_100m) + ")", ko, true, chart_colours::odometry));
   }
-  t.series.push_back(per_length("global optimization (mean " + fmt("%.3f", ke.translation_percent) + " %)", ke, false, chart_colours::estimate));
-  r.series.push_back(per_length("global optimization (mean " + fmt("%.4f", ke.rotation_deg_per_100m) + ")", ke, true, chart_colours::estimate));
+  t.series.push_back(
+      per_length("global optimization (mean " + fmt("%.3f", ke.translation_percent) + " %)", ke, false, chart_colours::estimate));
+  r.series.push_back(
+      per_length("global optimization (mean " + fmt("%.4f", ke.rotation_deg_per_100m) + ")", ke, true, chart_colours::estimate));
   Canvas c(kWidth, 900, format);
   if (!ke.num_segments) {
     draw_message(c, t.title, "trajectory shorter than 100 m: no KITTI segments", {0, 0, kWidth, 900});

@@ -258,11 +258,13 @@ WrittenFile render_run(const std::string& dir, const std::string& png_path, cons
   const RunData run = read_run(dir, options.graph || options.color == ColorMode::submap);
   const MapPicture pic = render_map(run, options);
   write_png(png_path, pic.image);
-  return {png_path, "top-down map picture (" + std::to_string(pic.image.width) + "x" + std::to_string(pic.image.height) + " pixels, " +
-         std::to_string(run.map.size()) + " map points, " + std::to_string(run.trajectory.size()) + " poses" +
-         (options.graph ? ", " + std::to_string(run.graph.nodes.size()) + " submaps and " +
-                              std::to_string(run.graph.edges.size()) + " factors"
-                        : std::string()) + ")"};
+  return {png_path, "top-down map picture (" + std::to_string(pic.image.width) + "x" + std::to_string(pic.image.height) +
+                        " pixels, " + std::to_string(run.map.size()) + " map points, " + std::to_string(run.trajectory.size()) +
+                        " poses" +
+                        (options.graph ? ", " + std::to_string(run.graph.nodes.size()) + " submaps and " +
+                                             std::to_string(run.graph.edges.size()) + " factors"
+                                       : std::string()) +
+                        ")"};
 }
 
 }  // namespace gcmap::viz

@@ -25,7 +25,9 @@ struct RenderOptions {
 struct TopDown {
   double min_x = 0.0, max_y = 0.0, pixels_per_m = 1.0;
   int width = 0, height = 0;
-  Eigen::Vector2d pixel(const Eigen::Vector3d& p) const { return {(p.x() - min_x) * pixels_per_m, (max_y - p.y()) * pixels_per_m}; }
+  Eigen::Vector2d pixel(const Eigen::Vector3d& p) const {
+    return {(p.x() - min_x) * pixels_per_m, (max_y - p.y()) * pixels_per_m};
+  }
 };
 // Fits the map, trajectory and nodes into `size` pixels along the longer side with a margin.
 TopDown fit_top_down(const RunData& run, int size);
@@ -53,7 +55,7 @@ struct LegendEntry {
 std::vector<LegendEntry> legend_entries(const RunData& run, const RenderOptions& options);
 
 struct MapPicture {
-  Image image;   // the map area (view) on the left, the legend panel on the right
+  Image image;  // the map area (view) on the left, the legend panel on the right
   TopDown view;
   std::vector<LegendEntry> legend;
   std::string note;  // printed across the picture ("empty map ..."), empty when none

@@ -22,9 +22,7 @@ YAML::Node load_json_object(const std::string& path) {
   YAML::Node root;
   try {
     root = YAML::Load(text);
-  } catch (const YAML::Exception& e) {
-    throw Error(path + ": not valid JSON (" + e.msg + "; truncated?)");
-  }
+  } catch (const YAML::Exception& e) { throw Error(path + ": not valid JSON (" + e.msg + "; truncated?)"); }
   if (!root.IsMap()) throw Error(path + ": expected a JSON object");
   return root;
 }
@@ -48,8 +46,7 @@ double number(const YAML::Node& node, const char* key, const std::string& where)
   double x = NAN;
   try {
     x = v.as<double>();
-  } catch (const YAML::Exception&) {
-  }
+  } catch (const YAML::Exception&) {}
   if (!std::isfinite(x)) throw Error(where + ": \"" + key + "\" is not a finite number");
   return x;
 }
@@ -72,8 +69,7 @@ Eigen::Isometry3d pose(const YAML::Node& node, const std::string& where) {
     v[k] = NAN;
     try {
       v[k] = p[k].as<double>();
-    } catch (const YAML::Exception&) {
-    }
+    } catch (const YAML::Exception&) {}
     if (!std::isfinite(v[k])) throw Error(where + ": \"pose\" has a non-number");
   }
   if (std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]) < 1e-6) throw Error(where + ": zero quaternion");
@@ -123,7 +119,8 @@ RunGraph read_graph_json(const std::string& path) {
     e.target = integer(factors[i], "target", where);
     for (int id : {e.source, e.target})
       if (id < 0 || id >= static_cast<int>(g.nodes.size()))
-        throw Error(where + ": submap " + std::to_string(id) + " does not exist (" + std::to_string(g.nodes.size()) + " submaps)");
+        throw Error(where + ": submap " + std::to_string(id) + " does not exist (" + std::to_string(g.nodes.size()) +
+                    " submaps)");
     if (factors[i]["final_weight"]) e.weight = number(factors[i], "final_weight", where);
     g.edges.push_back(e);
   }

@@ -12,7 +12,7 @@ namespace gcmap::viz {
 std::string default_three_dir();
 
 struct ViewOptions {
-  size_t max_points = 2'000'000;            // the map is evenly decimated to at most this
+  size_t max_points = 2'000'000;  // the map is evenly decimated to at most this
   std::string three_dir = default_three_dir();
   void validate() const;
 };
