@@ -1,4 +1,5 @@
 #include <iostream>
+#include <optional>
 
 #include "commands.hpp"
 #include "gcmap/core/error.hpp"
@@ -6,6 +7,38 @@
 #include "gcmap/sim/writer.hpp"
 
 namespace gcmap::cli {
+
+namespace {
+
+// --imu and the options that shape it.
+struct ImuOptions {
+  bool enabled = false, noise_free = false;
+  sim::ImuSimConfig config;
+  CLI::Option *rate = nullptr, *offset = nullptr, *ideal = nullptr;
+
+  void add(CLI::App* cmd) {
+    cmd->add_flag("--imu", enabled,
+                  "Also an IMU: imu.txt (stamp, gyro rad/s, acceleration m/s^2), imu_bias.txt, and a bag's /imu "
+                  "(sensor_msgs/Imu; acceleration in g with --message livox); scenario.json gives its noise, T_lidar_imu "
+                  "and time offset");
+    rate = cmd->add_option("--imu-rate", config.rate, "IMU sample rate in Hz")->capture_default_str();
+    offset = cmd->add_option("--imu-time-offset", config.time_offset,
+                             "IMU stamps = true time + this (s): the IMU clock's offset from the LiDAR's")
+                 ->capture_default_str();
+    ideal = cmd->add_flag("--imu-noise-free", noise_free, "An exact IMU: no white noise, no bias");
+  }
+  std::optional<sim::ImuSimConfig> resolve() {
+    if (!enabled && (rate->count() || offset->count() || ideal->count()))
+      throw Error("--imu-rate, --imu-time-offset and --imu-noise-free need --imu");
+    if (!enabled) return std::nullopt;
+    if (!(config.rate >= 10.0 && config.rate <= 10000.0))
+      throw Error("--imu-rate: expected 10 to 10000 Hz, got " + std::to_string(config.rate));
+    config.noise = !noise_free;
+    return config;
+  }
+};
+
+}  // namespace
 
 void add_simulate(CLI::App& app, Runner& run) {
   auto opt = std::make_shared<sim::SimulationConfig>();
@@ -62,17 +95,8 @@ void add_simulate(CLI::App& app, Runner& run) {
   cmd->add_option("--realism", *realism,
                   "all, none, or the keys to enable: motion_distortion, moving_objects, labels, calibration, "
                   "range_noise, dropouts, mixed_pixels, spurious, curbs, vegetation (default: the scenario's)");
-  auto imu = std::make_shared<bool>(false), imu_noise_free = std::make_shared<bool>(false);
-  auto imu_config = std::make_shared<sim::ImuSimConfig>();
-  cmd->add_flag("--imu", *imu,
-                "Also an IMU: imu.txt (stamp, gyro rad/s, acceleration m/s^2), imu_bias.txt, and a bag's /imu "
-                "(sensor_msgs/Imu; acceleration in g with --message livox); scenario.json gives its noise, T_lidar_imu "
-                "and time offset");
-  auto* imu_rate = cmd->add_option("--imu-rate", imu_config->rate, "IMU sample rate in Hz")->capture_default_str();
-  auto* imu_offset = cmd->add_option("--imu-time-offset", imu_config->time_offset,
-                                     "IMU stamps = true time + this (s): the IMU clock's offset from the LiDAR's")
-                         ->capture_default_str();
-  auto* imu_ideal = cmd->add_flag("--imu-noise-free", *imu_noise_free, "An exact IMU: no white noise, no bias");
+  auto imu = std::make_shared<ImuOptions>();
+  imu->add(cmd);
   cmd->callback([=, &run] {
     run = [=] {
       if (*ideal && !realism->empty()) throw Error("--ideal and --realism: give one of them");
@@ -87,14 +111,7 @@ void add_simulate(CLI::App& app, Runner& run) {
         throw Error("--time-field picks a PointCloud2 field: --message livox has its own (offset_time, ns)");
       output.time = sim::parse_time_field(*time_field, "--time-field");
       output.compression = sim::parse_compression(*compression, output.bag, "--compression");
-      if (!*imu && (imu_rate->count() || imu_offset->count() || imu_ideal->count()))
-        throw Error("--imu-rate, --imu-time-offset and --imu-noise-free need --imu");
-      if (*imu) {
-        if (!(imu_config->rate >= 10.0 && imu_config->rate <= 10000.0))
-          throw Error("--imu-rate: expected 10 to 10000 Hz, got " + std::to_string(imu_config->rate));
-        imu_config->noise = !*imu_noise_free;
-        output.imu = *imu_config;
-      }
+      output.imu = imu->resolve();
       output.mistake = sim::parse_time_mistake(*mistake, "--time-mistake");
       Stopwatch w;
       const size_t points = sim::write_simulation(*out, *opt, output, false);
