@@ -131,8 +131,10 @@ void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapR
   next("quality report");
   Stopwatch clock;
   const QualityReport quality = assess_quality(pipeline);
-  spdlog::info("quality report ({} submap pairs compared) in {:.1f} s:", quality.pairs.size(), clock.ms() / 1e3);
-  for (const std::string& line : quality.verdict) spdlog::info("quality: {}", line);
+  if (!o.quiet) {
+    spdlog::info("quality report ({} submap pairs compared) in {:.1f} s:", quality.pairs.size(), clock.ms() / 1e3);
+    for (const std::string& line : quality.verdict) spdlog::info("quality: {}", line);
+  }
   write_folder_contents_atomic(o.output, [&](const std::string& staging) {
     const fs::path out(staging);
     next("trajectories");

@@ -188,8 +188,19 @@ void decide_folder(InputAssumptions& a, const InputOptions& o) {
   decide_kitti(a, o, shape ? &*shape : nullptr);
 }
 
+// Silences the log while a bag is looked at ahead: the run's own reader reports its damage once.
+class QuietLog {
+ public:
+  QuietLog() : level_(spdlog::get_level()) { spdlog::set_level(spdlog::level::err); }
+  ~QuietLog() { spdlog::set_level(level_); }
+
+ private:
+  spdlog::level::level_enum level_;
+};
+
 void decide_bag(InputAssumptions& a, const InputOptions& o) {
   a.layout = InputLayout::bag;
+  const QuietLog quiet;
   BagScanSource source(a.input, BagScanOptions{.topic = o.topic});
   a.topic = source.topic();
   a.scans = source.message_count();
