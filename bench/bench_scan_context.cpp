@@ -3,8 +3,8 @@
 #include <cstdio>
 
 #include "gcmap/core/timer.hpp"
-#include "gcmap/odometry/preprocess_scan.hpp"
 #include "gcmap/loop/scan_context.hpp"
+#include "gcmap/odometry/preprocess_scan.hpp"
 #include "gcmap/sim/simulator.hpp"
 
 using namespace gcmap;

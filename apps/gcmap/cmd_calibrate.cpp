@@ -7,12 +7,12 @@
 #include <cstdio>
 
 #include "commands.hpp"
+#include "gcmap/calibration/elevation_calibration.hpp"
 #include "gcmap/core/deskew.hpp"
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/se3.hpp"
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/trajectory_io.hpp"
-#include "gcmap/calibration/elevation_calibration.hpp"
 #include "gcmap/mapping/pipeline.hpp"
 #include "map_runner.hpp"
 #include "progress.hpp"

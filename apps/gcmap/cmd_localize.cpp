@@ -7,9 +7,9 @@
 #include "gcmap/core/memory.hpp"
 #include "gcmap/cuda/cuda_backend.hpp"
 #include "gcmap/io/file.hpp"
-#include "gcmap/session/session.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "gcmap/session/localizer.hpp"
+#include "gcmap/session/session.hpp"
 #include "map_runner.hpp"
 #include "progress.hpp"
 

@@ -8,9 +8,9 @@
 #include "gcmap/cuda/cuda_backend.hpp"
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
-#include "gcmap/session/session.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "gcmap/session/merge.hpp"
+#include "gcmap/session/session.hpp"
 #include "progress.hpp"
 
 namespace gcmap::cli {

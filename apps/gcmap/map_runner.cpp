@@ -17,12 +17,12 @@
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/sequence.hpp"
-#include "gcmap/session/session.hpp"
-#include "gcmap/viz/report_html.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "gcmap/mapping/pipeline.hpp"
 #include "gcmap/mapping/quality.hpp"
 #include "gcmap/mapping/report.hpp"
+#include "gcmap/session/session.hpp"
+#include "gcmap/viz/report_html.hpp"
 #include "progress.hpp"
 
 namespace gcmap::cli {
@@ -116,8 +116,8 @@ class SignalScope {
   }
 
  private:
-  struct sigaction old_int_ {
-  }, old_term_{};
+  struct sigaction old_int_ {};
+  struct sigaction old_term_ {};
 };
 
 void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapRunOptions& o, int signal,

@@ -6,8 +6,8 @@
 #include <cstdio>
 #include <limits>
 
-#include "gcmap/core/error.hpp"
 #include "gcmap/calibration/elevation_calibration.hpp"
+#include "gcmap/core/error.hpp"
 #include "gcmap/mapping/pipeline.hpp"
 #include "gcmap/sim/simulator.hpp"
 #include "test_util.hpp"

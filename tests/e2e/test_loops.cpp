@@ -4,12 +4,12 @@
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/gaussian_voxel_map.hpp"
-#include "gcmap/graph/levenberg_marquardt.hpp"
 #include "gcmap/eval/trajectory_metrics.hpp"
+#include "gcmap/graph/levenberg_marquardt.hpp"
 #include "gcmap/loop/loop_closure.hpp"
+#include "gcmap/loop/scan_context.hpp"
 #include "gcmap/mapping/mapper.hpp"
 #include "gcmap/odometry/preprocess_scan.hpp"
-#include "gcmap/loop/scan_context.hpp"
 #include "gcmap/sim/simulator.hpp"
 #include "test_util.hpp"
 

@@ -12,11 +12,11 @@
 #include "gcmap/eval/trajectory_metrics.hpp"
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
-#include "gcmap/session/session.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "gcmap/mapping/config.hpp"
 #include "gcmap/odometry/preprocess_scan.hpp"
 #include "gcmap/registration/registration.hpp"
+#include "gcmap/session/session.hpp"
 #include "gcmap/sim/simulator.hpp"
 #include "test_util.hpp"
 

@@ -11,9 +11,9 @@
 #include "gcmap/eval/map_entropy.hpp"
 #include "gcmap/eval/trajectory_metrics.hpp"
 #include "gcmap/io/file.hpp"
-#include "gcmap/session/session.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "gcmap/session/merge.hpp"
+#include "gcmap/session/session.hpp"
 #include "gcmap/sim/simulator.hpp"
 #include "test_util.hpp"
 

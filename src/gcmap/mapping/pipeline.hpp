@@ -7,8 +7,8 @@
 #include <memory>
 #include <optional>
 
-#include "gcmap/core/scan_source.hpp"
 #include "gcmap/calibration/elevation_calibration.hpp"
+#include "gcmap/core/scan_source.hpp"
 #include "gcmap/mapping/mapper.hpp"
 #include "gcmap/odometry/sweep_odometry.hpp"
 

@@ -10,8 +10,8 @@
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/timer.hpp"
 #include "gcmap/graph/factor_graph.hpp"
-#include "gcmap/mapping/global_mapper.hpp"
 #include "gcmap/loop/loop_closure.hpp"
+#include "gcmap/mapping/global_mapper.hpp"
 #include "gcmap/mapping/loop_detector.hpp"
 
 namespace gcmap {
