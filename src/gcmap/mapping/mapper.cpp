@@ -104,12 +104,9 @@ struct Placement {
 // and sums each in index order, so concatenated slabs equal one downsample of everything.
 class SlabAssembler {
  public:
-  SlabAssembler(const std::vector<Submap>& submaps, std::vector<Eigen::Isometry3d> placements, double resolution)
-      : submaps_(submaps), inv_(1.0 / resolution), resolution_(resolution) {
+  SlabAssembler(const std::vector<Submap>& submaps, const std::vector<Eigen::Isometry3d>& placements, double resolution)
+      : submaps_(submaps), inv_(1.0 / resolution), resolution_(resolution), intensities_(have_intensities(submaps)) {
     for (const Eigen::Isometry3d& T : placements) placed_.push_back({T.linear().cast<float>(), T.translation().cast<float>()});
-    // Intensity is mapped where every submap has it (a mean per voxel, as the points).
-    intensities_ = !submaps.empty() &&
-                   std::all_of(submaps.begin(), submaps.end(), [](const Submap& s) { return s.cloud->has_intensities(); });
   }
 
   PointCloud assemble(size_t block_points) {
@@ -199,14 +196,25 @@ class SlabAssembler {
 
 }  // namespace
 
-PointCloud Mapper::assemble_map(double resolution, size_t block_points) const {
+bool have_intensities(const std::vector<Submap>& submaps) {
+  return std::all_of(submaps.begin(), submaps.end(),
+                     [](const Submap& s) { return s.cloud->empty() || s.cloud->has_intensities(); });
+}
+
+PointCloud assemble_map(const std::vector<Submap>& submaps, const std::vector<Eigen::Isometry3d>& T_out_submap, double resolution,
+                        size_t block_points) {
   if (!(resolution > 0.0)) throw Error("assemble_map: resolution must be positive");
+  if (T_out_submap.size() != submaps.size()) throw Error("assemble_map: a pose per submap is needed");
+  return SlabAssembler(submaps, T_out_submap, resolution).assemble(std::max<size_t>(block_points, 1));
+}
+
+PointCloud Mapper::assemble_map(double resolution, size_t block_points) const {
   // Points (and intensities) in the output frame (first frame identity, like the trajectory).
   const Eigen::Isometry3d T_out_world =
       !frames_.empty() && frames_[0].submap >= 0 ? keyframe_world(0).inverse() : Eigen::Isometry3d::Identity();
   std::vector<Eigen::Isometry3d> placements;
   for (const Submap& s : submaps()) placements.push_back(T_out_world * global_.pose(s.id));
-  return SlabAssembler(submaps(), std::move(placements), resolution).assemble(std::max<size_t>(block_points, 1));
+  return gcmap::assemble_map(submaps(), placements, resolution, block_points);
 }
 
 }  // namespace gcmap

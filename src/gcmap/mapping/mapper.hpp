@@ -10,6 +10,14 @@
 
 namespace gcmap {
 
+// Whether the map of these submaps carries intensity: every cloud has it (empty ones agree with either).
+bool have_intensities(const std::vector<Submap>& submaps);
+// The submaps placed by T_out_submap (one each), voxel-downsampled, with a mean intensity per voxel
+// when have_intensities; at most about block_points points (more only where one voxel column
+// holds more) exist at once before downsampling.
+PointCloud assemble_map(const std::vector<Submap>& submaps, const std::vector<Eigen::Isometry3d>& T_out_submap, double resolution,
+                        size_t block_points = size_t{1} << 22);
+
 struct MapperStats {
   LocalMappingStats local;
   GlobalMappingStats global;
@@ -49,8 +57,7 @@ class Mapper {
   const GlobalMappingStats& global_stats() const { return global_.stats(); }
   // The transform from the optimizer's world (submap 0's frame) to the output frame (frame 0).
   Eigen::Isometry3d output_from_world() const;
-  // All submaps in the output frame, voxel-downsampled; at most about block_points points (more
-  // only where one voxel column holds more) exist at once before downsampling.
+  // All submaps in the output frame (see gcmap::assemble_map).
   PointCloud assemble_map(double resolution, size_t block_points = size_t{1} << 22) const;
 
  private:
