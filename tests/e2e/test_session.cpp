@@ -70,6 +70,9 @@ TEST_F(SessionRoundTrip, ReadsBackWhatWasWritten) {
     }
     EXPECT_EQ(point_diff, 0.f);
     EXPECT_LT(cov_diff, 1e-6f);
+    ASSERT_TRUE(a.cloud->has_intensities());  // the simulator's scans have intensity
+    EXPECT_EQ(b.cloud->intensities, a.cloud->intensities);
+    EXPECT_FALSE(b.factor_source->has_intensities());  // as the run kept it: no memory for what factors skip
     ASSERT_EQ(b.descriptors.size(), a.descriptors.size());
     EXPECT_EQ(b.descriptors.back().cells, a.descriptors.back().cells);
     EXPECT_EQ(b.voxels->num_voxels(), a.voxels->num_voxels());  // rebuilt at the same resolution
@@ -91,7 +94,8 @@ TEST_F(SessionRoundTrip, ReadsBackWhatWasWritten) {
 TEST_F(SessionRoundTrip, DamagedOrNewerSessionsAreRefusedWithTheFileNamed) {
   const std::string newer = copy("newer");
   std::string manifest = read_file(newer + "/manifest.yaml");
-  manifest.replace(manifest.find("version: 1"), 10, "version: 2");
+  const std::string current = "version: " + std::to_string(kSessionVersion);
+  manifest.replace(manifest.find(current), current.size(), "version: " + std::to_string(kSessionVersion + 1));
   std::ofstream(newer + "/manifest.yaml") << manifest;
   try {
     read_session(newer);

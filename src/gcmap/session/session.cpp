@@ -14,6 +14,7 @@
 #include "gcmap/core/se3.hpp"
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/trajectory_io.hpp"
+#include "gcmap/mapping/mapper.hpp"
 
 namespace gcmap {
 
@@ -107,9 +108,21 @@ void put_submap(std::string& out, const Submap& s, const Eigen::Isometry3d& T_wo
     const float v[6] = {m(0, 0), m(0, 1), m(0, 2), m(1, 1), m(1, 2), m(2, 2)};
     out.append(reinterpret_cast<const char*>(v), sizeof v);
   }
+  put<uint8_t>(out, c.has_intensities() ? 1 : 0);
+  out.append(reinterpret_cast<const char*>(c.intensities.data()), c.intensities.size() * sizeof(float));
 }
 
-Submap get_submap(Reader& in, Eigen::Isometry3d* T_world_submap) {
+// Version 2: a flag, then a float per point when the submap had intensities.
+void get_intensities(Reader& in, int id, PointCloud& cloud) {
+  const uint8_t flag = in.get<uint8_t>();
+  if (flag > 1) in.fail("submap " + std::to_string(id) + ": intensity flag " + std::to_string(flag) + " is neither 0 nor 1");
+  if (!flag) return;
+  in.need(uint64_t(cloud.size()) * sizeof(float), std::to_string(cloud.size()) + " intensities");
+  cloud.intensities.resize(cloud.size());
+  in.array(cloud.intensities.data(), cloud.intensities.size());
+}
+
+Submap get_submap(Reader& in, uint32_t version, Eigen::Isometry3d* T_world_submap) {
   Submap s;
   s.id = in.get<int32_t>();
   *T_world_submap = in.pose();
@@ -145,6 +158,7 @@ Submap get_submap(Reader& in, Eigen::Isometry3d* T_world_submap) {
     in.array(v, 6);
     m << v[0], v[1], v[2], v[1], v[3], v[4], v[2], v[4], v[5];
   }
+  if (version >= 2) get_intensities(in, s.id, *cloud);
   if (!cloud->points.empty() && remove_non_finite(*cloud) > 0)
     in.fail("submap " + std::to_string(s.id) + " has non-finite points");
   s.cloud = std::move(cloud);
@@ -193,7 +207,18 @@ void rebuild(Submap& s, const MappingConfig& config) {
   voxels->insert(*s.cloud);
   voxels->finalize();
   s.voxels = voxels;
-  s.factor_source = std::make_shared<const PointCloud>(evenly_subsampled(*s.cloud, config.global.factor_source_points));
+  PointCloud source = evenly_subsampled(*s.cloud, config.global.factor_source_points);
+  std::vector<float>().swap(source.intensities);  // the factors read points and covariances only
+  s.factor_source = std::make_shared<const PointCloud>(std::move(source));
+}
+
+// The reader takes a covariance (and an intensity, when any) per point: anything else would be
+// written as a file that does not read back.
+void check_channels(const std::string& dir, const Submap& m) {
+  const PointCloud& c = *m.cloud;
+  if (c.covs.size() != c.size() || (c.has_intensities() && c.intensities.size() != c.size()))
+    throw Error(dir + ": submap " + std::to_string(m.id) + " has " + std::to_string(c.size()) + " points, " +
+                std::to_string(c.covs.size()) + " covariances and " + std::to_string(c.intensities.size()) + " intensities");
 }
 
 // Writes into a fresh folder beside DIR, then swaps it in.
@@ -236,6 +261,7 @@ void write_session(const std::string& dir, const MappingPipeline& p, const std::
 void write_session(const std::string& dir, const Session& s) {
   if (s.submaps.size() != s.T_world_submap.size() || s.stamps.size() != s.trajectory.size())
     throw Error(dir + ": inconsistent session (submaps and poses, or frames and stamps, differ in number)");
+  for (const Submap& m : s.submaps) check_channels(dir, m);
   write_folder(dir, [&](const fs::path& tmp) {
     write_file_atomic((tmp / "submaps.bin").string(), [&](std::ostream& o) {
       // A submap at a time: the whole file in memory would be the largest buffer of a run.
@@ -285,7 +311,7 @@ Session read_session(const std::string& dir, const std::function<void(size_t don
   if (count != submaps) in.fail(std::to_string(count) + " submaps, the manifest says " + std::to_string(submaps));
   for (uint32_t k = 0; k < count; ++k) {
     Eigen::Isometry3d T;
-    s.submaps.push_back(get_submap(in, &T));
+    s.submaps.push_back(get_submap(in, version, &T));
     if (s.submaps.back().id != static_cast<int>(k)) in.fail("submap ids out of order");
     for (int f : s.submaps.back().keyframes)
       if (f < 0 || static_cast<size_t>(f) >= frames) in.fail("keyframe " + std::to_string(f) + " is not a frame of the session");
@@ -309,6 +335,7 @@ SessionInfo session_info(const Session& s, const std::string& dir) {
   info.frames = s.trajectory.size();
   info.submaps = s.submaps.size();
   info.factors = s.factors.size();
+  info.intensities = have_intensities(s.submaps);
   for (size_t k = 0; k < s.submaps.size(); ++k) {
     info.keyframes += s.submaps[k].keyframes.size();
     info.points += s.submaps[k].cloud->size();
