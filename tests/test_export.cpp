@@ -24,7 +24,8 @@ Eigen::Isometry3d at(double x, double y, double z, double yaw_deg = 0.0) {
 const std::vector<Eigen::Vector3f> kPoints = {{0, 0, 0}, {5, 0, 1}, {0, 7, 2}};
 const std::vector<Eigen::Vector3d> kWorld = {{0, 0, 0}, {5, 0, 1}, {0, 7, 2}, {100, 0, 0}, {105, 0, 1}, {100, 7, 2}};
 
-std::string make_output_folder(const test::TempDir& tmp) {
+// intensities: per point of each submap, or none.
+std::string make_output_folder(const test::TempDir& tmp, const std::vector<float>& intensities = {}) {
   Session s;
   s.created_by = "test";
   for (int k = 0; k < 2; ++k) {
@@ -35,6 +36,7 @@ std::string make_output_folder(const test::TempDir& tmp) {
     auto cloud = std::make_shared<PointCloud>();
     cloud->points = kPoints;
     cloud->covs.assign(kPoints.size(), Eigen::Matrix3f::Identity());
+    cloud->intensities = intensities;
     m.cloud = cloud;
     s.submaps.push_back(m);
   }
@@ -67,7 +69,20 @@ TEST(Export, LasFromSessionKeepsPointsAndSubmapIds) {
   }
   EXPECT_TRUE(f.header.wkt.empty());
   EXPECT_NE(test::slurp(tmp / "x/export.json").find("\"assumptions\":[\"points: every submap cloud"), std::string::npos);
+  EXPECT_NE(test::slurp(tmp / "x/export.json").find("intensity: none in the source, written as 0"), std::string::npos);
   EXPECT_FALSE(std::filesystem::exists(tmp / "x/trajectory_wgs84.txt"));
+}
+
+TEST(Export, LasFromSessionKeepsItsIntensity) {
+  test::TempDir tmp;
+  const std::string out = make_output_folder(tmp, {0.0f, 0.25f, 1.0f});
+  const auto r = test::run_gcmap("export " + out + " -o " + (tmp / "x") + " --quiet");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const LasFile f = read_las(tmp / "x/map.las");
+  ASSERT_EQ(f.cloud.intensities.size(), kWorld.size());
+  const uint16_t scaled[3] = {0, 16384, 65535};  // x 65535, rounded
+  for (size_t i = 0; i < kWorld.size(); ++i) EXPECT_EQ(f.cloud.intensities[i], scaled[i % 3]) << i;
+  EXPECT_NE(test::slurp(tmp / "x/export.json").find("intensity: values in [0, 1] scaled by 65535"), std::string::npos);
 }
 
 TEST(Export, TilesAndNoStaleTilesLeft) {

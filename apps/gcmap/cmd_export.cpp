@@ -15,6 +15,7 @@
 #include "gcmap/io/las.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/trajectory_io.hpp"
+#include "gcmap/mapping/mapper.hpp"
 #include "gcmap/session/session.hpp"
 #include "progress.hpp"
 
@@ -60,9 +61,12 @@ ExportMap load_session(const std::string& dir) {
   if (s.submaps.size() > 65536)
     throw Error(dir + ": " + std::to_string(s.submaps.size()) + " submaps do not fit LAS's 16-bit point source id");
   ExportMap m{MapSource::session, dir, {}, {}, s.submaps.size()};
+  const bool intensities = have_intensities(s.submaps);
   for (size_t k = 0; k < s.submaps.size(); ++k) {
+    const PointCloud& c = *s.submaps[k].cloud;
     const Eigen::Isometry3f T = s.T_world_submap[k].cast<float>();
-    for (const Eigen::Vector3f& p : s.submaps[k].cloud->points) m.cloud.points.push_back(T * p);
+    for (const Eigen::Vector3f& p : c.points) m.cloud.points.push_back(T * p);
+    if (intensities) m.cloud.intensities.insert(m.cloud.intensities.end(), c.intensities.begin(), c.intensities.end());
     m.source_ids.resize(m.cloud.size(), static_cast<uint16_t>(k));
   }
   return m;

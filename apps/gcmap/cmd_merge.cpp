@@ -4,11 +4,11 @@
 
 #include "commands.hpp"
 #include "gcmap/core/error.hpp"
-#include "gcmap/core/preprocess.hpp"
 #include "gcmap/cuda/cuda_backend.hpp"
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/trajectory_io.hpp"
+#include "gcmap/mapping/mapper.hpp"
 #include "gcmap/session/merge.hpp"
 #include "gcmap/session/session.hpp"
 #include "progress.hpp"
@@ -46,13 +46,14 @@ Session merged_session(const std::vector<Session>& sessions, const MergeResult& 
   return m;
 }
 
-PointCloud merged_map(const Session& m, double resolution) {
-  PointCloud map;
-  for (size_t k = 0; k < m.submaps.size(); ++k) {
-    const PointCloud c = transformed(*m.submaps[k].cloud, m.T_world_submap[k]);
-    map.points.insert(map.points.end(), c.points.begin(), c.points.end());
+// Why the merged map has no intensity (empty when it has): the first connected session without.
+std::string missing_intensity(const MergeOptions& o, const std::vector<Session>& sessions, const MergeResult& r) {
+  for (size_t k = 0; k < sessions.size(); ++k) {
+    if (!r.connected[k] || have_intensities(sessions[k].submaps)) continue;
+    return o.inputs[k] + (sessions[k].version < 2 ? " is a version 1 session, which kept no intensity"
+                                                  : " was mapped from scans without intensity");
   }
-  return voxel_downsample(map, resolution);
+  return "";
 }
 
 Json merge_report(const MergeOptions& o, const MergeResult& r) {
@@ -132,7 +133,9 @@ int merge(const MergeOptions& o) {
     t.stamps = sessions[k].stamps;
     write_trajectory((out / ("trajectory_" + std::to_string(k) + ".kitti")).string(), t);
   }
-  write_ply((out / "map.ply").string(), merged_map(m, config.output.map_resolution));
+  write_ply((out / "map.ply").string(), assemble_map(m.submaps, m.T_world_submap, config.output.map_resolution));
+  if (const std::string why = missing_intensity(o, sessions, r); !why.empty())
+    std::fprintf(stderr, "map.ply has no intensity: %s.\n", why.c_str());
   write_file_atomic((out / "merge.json").string(), [&](std::ostream& s) { s << merge_report(o, r).dump() << "\n"; });
   std::fprintf(stderr, "Merged %zu of %zu sessions in %.1f s: %zu submaps, %zu factors between sessions, %d LM iterations.\n",
                sessions.size() - std::count(r.connected.begin(), r.connected.end(), false), sessions.size(), r.total_ms / 1000.0,

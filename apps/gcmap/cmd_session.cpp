@@ -28,14 +28,15 @@ void add_session(CLI::App& app, Runner& run) {
       if (*json) {
         std::printf(
             "{\"version\":%d,\"created_by\":\"%s\",\"frames\":%zu,\"submaps\":%zu,\"keyframes\":%zu,\"points\":%zu,"
-            "\"factors\":%zu,\"extent_m\":[%.3f,%.3f,%.3f],\"bytes\":%ju}\n",
-            i.version, i.created_by.c_str(), i.frames, i.submaps, i.keyframes, i.points, i.factors, size.x(), size.y(), size.z(),
-            i.bytes);
+            "\"intensities\":%s,\"factors\":%zu,\"extent_m\":[%.3f,%.3f,%.3f],\"bytes\":%ju}\n",
+            i.version, i.created_by.c_str(), i.frames, i.submaps, i.keyframes, i.points, i.intensities ? "true" : "false",
+            i.factors, size.x(), size.y(), size.z(), i.bytes);
         return 0;
       }
       std::printf("session     %s (format version %d, written by %s)\n", folder.c_str(), i.version, i.created_by.c_str());
       std::printf("frames      %zu (%zu keyframes)\n", i.frames, i.keyframes);
-      std::printf("submaps     %zu, %zu points with covariances\n", i.submaps, i.points);
+      std::printf("submaps     %zu, %zu points with covariances%s\n", i.submaps, i.points,
+                  i.intensities ? " and intensities" : " (no intensity)");
       std::printf("factors     %zu in the global graph\n", i.factors);
       std::printf("extent      %.1f x %.1f x %.1f m\n", size.x(), size.y(), size.z());
       std::printf("on disk     %.1f MB\n", i.bytes / 1e6);

@@ -11,6 +11,7 @@
 #include "gcmap/eval/map_entropy.hpp"
 #include "gcmap/eval/trajectory_metrics.hpp"
 #include "gcmap/io/file.hpp"
+#include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "gcmap/session/merge.hpp"
 #include "gcmap/session/session.hpp"
@@ -223,6 +224,7 @@ TEST_F(MergeOfSmallRoutes, CommandWritesTheMergedSessionAndRefusesBadSessionsInO
   const Session m = read_session(dir / "merged/session");
   EXPECT_EQ(m.submaps.size(), drive(0).session.submaps.size() + drive(1).session.submaps.size());
   EXPECT_EQ(m.trajectory.size(), 70u);
+  EXPECT_TRUE(session_info(m, dir / "merged/session").intensities);
   const Trajectory t1 = read_trajectory(dir / "merged/trajectory_1.kitti");
   ASSERT_EQ(t1.size(), 35u);
   EXPECT_LT(test::translation_error(t1.poses[0], truth(1, 0)), 0.05);
@@ -236,13 +238,59 @@ TEST_F(MergeOfSmallRoutes, CommandWritesTheMergedSessionAndRefusesBadSessionsInO
 
   std::filesystem::copy(dir / "run1", dir / "newer", std::filesystem::copy_options::recursive);
   std::string manifest = read_file(dir / "newer/session/manifest.yaml");
-  manifest.replace(manifest.find("version: 1"), 10, "version: 7");
+  manifest.replace(manifest.find("version: " + std::to_string(kSessionVersion)), 10, "version: 7");
   std::ofstream(dir / "newer/session/manifest.yaml") << manifest;
   const CliResult newer = run_cli("merge " + (dir / "run0") + " " + (dir / "newer") + " -o " + (dir / "m3"), dir);
   EXPECT_EQ(newer.code, 2);
   EXPECT_NE(newer.err.find("version 7"), std::string::npos) << newer.err;
   EXPECT_EQ(std::count(newer.err.begin(), newer.err.end(), '\n'), 1) << newer.err;
   EXPECT_FALSE(std::filesystem::exists(dir / "m3/session"));
+}
+
+// render reads map.ply and trajectory.kitti; a merge folder has trajectory_K.kitti per input, so
+// the merged map is shown with the first input's trajectory.
+CliResult render_intensity(const std::string& merged, const test::TempDir& dir) {
+  const std::string view = merged + "_view";
+  std::filesystem::create_directories(view);
+  std::filesystem::copy_file(merged + "/map.ply", view + "/map.ply");
+  std::filesystem::copy_file(merged + "/trajectory_0.kitti", view + "/trajectory.kitti");
+  return run_cli("render " + view + " --color intensity --no-graph -o " + view + "/i.png", dir);
+}
+
+TEST_F(MergeOfSmallRoutes, CommandMapHasIntensityWhenEverySessionHasIt) {
+  test::TempDir dir;
+  for (int k : {0, 1}) write_session(dir / ("run" + std::to_string(k)) + "/session", drive(k).session);
+  const CliResult ok = run_cli("merge " + (dir / "run0") + " " + (dir / "run1") + " -o " + (dir / "merged"), dir);
+  ASSERT_EQ(ok.code, 0) << ok.err;
+  EXPECT_EQ(ok.err.find("no intensity"), std::string::npos) << ok.err;
+  const PointCloud map = read_point_cloud(dir / "merged/map.ply");
+  ASSERT_EQ(map.intensities.size(), map.size());
+  // The simulator's intensities lie in [0, 1]; voxel means do too, and they vary over the map.
+  const auto [lo, hi] = std::minmax_element(map.intensities.begin(), map.intensities.end());
+  EXPECT_GE(*lo, 0.f);
+  EXPECT_LE(*hi, 1.f);
+  EXPECT_GT(*hi - *lo, 0.1f);
+  const CliResult render = render_intensity(dir / "merged", dir);
+  EXPECT_EQ(render.code, 0) << render.err;
+  EXPECT_TRUE(std::filesystem::exists(dir / "merged_view/i.png"));
+
+  // One session from scans without intensity: the map is written without, and the log says whose.
+  Session bare = drive(1).session;
+  for (Submap& s : bare.submaps) {
+    auto cloud = std::make_shared<PointCloud>(*s.cloud);
+    cloud->intensities.clear();
+    s.cloud = cloud;
+  }
+  write_session(dir / "bare/session", bare);
+  const CliResult without = run_cli("merge " + (dir / "run0") + " " + (dir / "bare") + " -o " + (dir / "m2"), dir);
+  ASSERT_EQ(without.code, 0) << without.err;
+  EXPECT_NE(without.err.find("map.ply has no intensity: " + (dir / "bare") + " was mapped from scans without intensity.\n"),
+            std::string::npos)
+      << without.err;
+  EXPECT_FALSE(read_point_cloud(dir / "m2/map.ply").has_intensities());
+  const CliResult refused = render_intensity(dir / "m2", dir);
+  EXPECT_NE(refused.code, 0);
+  EXPECT_NE(refused.err.find("no intensity field"), std::string::npos) << refused.err;
 }
 
 }  // namespace
