@@ -13,6 +13,7 @@
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/trajectory_io.hpp"
+#include "gcmap/mapping/mapper.hpp"
 #include "gcmap/session/merge.hpp"
 #include "gcmap/session/session.hpp"
 #include "gcmap/sim/simulator.hpp"
@@ -26,9 +27,9 @@ struct MappedDrive {
   std::vector<Eigen::Isometry3d> poses_world;  // ground truth in the world all routes share
 };
 
-// The first frames of a route of the small block, mapped by the pipeline; realistic: every
-// realism on (motion distortion, traffic, beam calibration errors, dropouts, ...).
-MappedDrive map_route(int route, uint64_t seed, size_t frames, bool realistic = false) {
+// Frames [first, first + frames) of a route of the small block, mapped by the pipeline; realistic:
+// every realism on (motion distortion, traffic, beam calibration errors, dropouts, ...).
+MappedDrive map_route(int route, uint64_t seed, size_t frames, bool realistic = false, size_t first = 0) {
   sim::SimulationConfig sc;
   sc.scenario = "small";
   sc.route = route;
@@ -37,12 +38,14 @@ MappedDrive map_route(int route, uint64_t seed, size_t frames, bool realistic = 
   const sim::Simulator sim(sc);
   MappingPipeline p{MappingConfig{}};
   std::vector<double> stamps;
-  for (size_t f = 0; f < frames; ++f) {
+  for (size_t f = first; f < first + frames; ++f) {
     p.add_scan(sim.scan(f), 0.1 * f);
     stamps.push_back(0.1 * f);
   }
   p.finish();
-  return {make_session(p, stamps), sim.poses()};
+  std::vector<Eigen::Isometry3d> poses = sim.poses();
+  poses.erase(poses.begin(), poses.begin() + static_cast<std::ptrdiff_t>(first));
+  return {make_session(p, stamps), poses};
 }
 
 MergeInput input(const MappedDrive& d, const std::string& name) {
@@ -257,11 +260,16 @@ CliResult render_intensity(const std::string& merged, const test::TempDir& dir) 
   return run_cli("render " + view + " --color intensity --no-graph -o " + view + "/i.png", dir);
 }
 
-TEST_F(MergeOfSmallRoutes, CommandMapHasIntensityWhenEverySessionHasIt) {
+TEST(MergeCommand, MapHasIntensityWhenEverySessionHasIt) {
+  // Two short sessions of one route, the second from 10 frames (about 11 m) further on.
+  const MappedDrive a = map_route(0, 1, 20), b = map_route(0, 1, 20, false, 10);
+  ASSERT_TRUE(have_intensities(a.session.submaps) && have_intensities(b.session.submaps));  // the simulator's scans have it
   test::TempDir dir;
-  for (int k : {0, 1}) write_session(dir / ("run" + std::to_string(k)) + "/session", drive(k).session);
+  write_session(dir / "run0/session", a.session);
+  write_session(dir / "run1/session", b.session);
   const CliResult ok = run_cli("merge " + (dir / "run0") + " " + (dir / "run1") + " -o " + (dir / "merged"), dir);
   ASSERT_EQ(ok.code, 0) << ok.err;
+  EXPECT_NE(ok.err.find("Merged 2 of 2 sessions"), std::string::npos) << ok.err;
   EXPECT_EQ(ok.err.find("no intensity"), std::string::npos) << ok.err;
   const PointCloud map = read_point_cloud(dir / "merged/map.ply");
   ASSERT_EQ(map.intensities.size(), map.size());
@@ -275,7 +283,7 @@ TEST_F(MergeOfSmallRoutes, CommandMapHasIntensityWhenEverySessionHasIt) {
   EXPECT_TRUE(std::filesystem::exists(dir / "merged_view/i.png"));
 
   // One session from scans without intensity: the map is written without, and the log says whose.
-  Session bare = drive(1).session;
+  Session bare = b.session;
   for (Submap& s : bare.submaps) {
     auto cloud = std::make_shared<PointCloud>(*s.cloud);
     cloud->intensities.clear();
