@@ -7,6 +7,7 @@
 #include <cstdio>
 
 #include "gcmap/eval/map_entropy.hpp"
+#include "gcmap/mapping/report.hpp"
 #include "gcmap/registration/registration.hpp"
 
 namespace gcmap {
@@ -230,17 +231,6 @@ Json pair_json(const SubmapPairRecord& p) {
   j["rotation_deg"] = p.rotation_deg;
   j["inlier_fraction"] = p.inlier_fraction;
   j["inconsistent"] = p.inconsistent;
-  return j;
-}
-
-Json loop_json(const LoopRecord& l) {
-  Json j = Json::object();
-  j["source"] = l.source;
-  j["target"] = l.target;
-  j["descriptor_distance"] = l.descriptor_distance;
-  j["inlier_fraction"] = l.inlier_fraction;
-  j["inlier_rmse"] = l.inlier_rmse;
-  j["decision"] = l.accepted ? "accepted" : "rejected";
   return j;
 }
 
