@@ -130,7 +130,7 @@ void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapR
   const auto next = [&](const std::string& what) { writing.step(++step, what); };
   next("quality report");
   Stopwatch clock;
-  const QualityReport quality = assess_quality(pipeline);
+  const QualityReport quality = assess_quality(pipeline, o.config.quality, frame_offset);
   if (!o.quiet) {
     spdlog::info("quality report ({} submap pairs compared) in {:.1f} s:", quality.pairs.size(), clock.ms() / 1e3);
     for (const std::string& line : quality.verdict) spdlog::info("quality: {}", line);

@@ -32,7 +32,7 @@ struct MapRunResult {
 struct Input {
   std::unique_ptr<ScanSource> source;
   bool kitti_hdl64 = false;
-  int frame_offset = 0;          // added to frame numbers in graph.json
+  int frame_offset = 0;          // added to frame numbers in graph.json and quality.json
   InputAssumptions assumptions;  // what the run assumes about the input, and why
 };
 

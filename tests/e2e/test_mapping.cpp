@@ -161,6 +161,35 @@ TEST_F(SmallScenario, FullDiskLeavesThePreviousOutputsWhole) {
   EXPECT_EQ(output_files(out), before) << "a file of the previous run changed, or a staging file was left";
 }
 
+// All values of `key` in the JSON text from `from` on, in order.
+std::vector<int> json_ints(const std::string& json, const std::string& key, size_t from = 0) {
+  std::vector<int> out;
+  const std::regex re("\"" + key + "\":(-?[0-9]+)");
+  for (auto it = std::sregex_iterator(json.begin() + from, json.end(), re); it != std::sregex_iterator(); ++it)
+    out.push_back(std::stoi((*it)[1]));
+  return out;
+}
+
+TEST_F(SmallScenario, QualityJsonNumbersFramesAsTheInputDoes) {
+  // --start 30: the run's first frame is the input's 30th, in quality.json as in graph.json.
+  std::string err;
+  ASSERT_EQ(run("map " + (*dir / "sim") + " --quiet --no-render --start 30 --max-frames 40 -o " + (*dir / "start30"), &err), 0)
+      << err;
+  const std::string quality = slurp(*dir / "start30/quality.json"), graph = slurp(*dir / "start30/graph.json");
+  const size_t frames = quality.find("\"frames\":["), submaps = quality.find("\"submaps\":[");
+  ASSERT_NE(frames, std::string::npos);
+  ASSERT_NE(submaps, std::string::npos);
+  const std::vector<int> numbers = json_ints(quality.substr(frames, submaps - frames), "frame");
+  ASSERT_EQ(numbers.size(), 40u);
+  EXPECT_EQ(numbers.front(), 30);
+  EXPECT_EQ(numbers.back(), 69);
+  const std::vector<int> first = json_ints(quality, "first_frame", submaps);
+  ASSERT_GE(first.size(), 2u);
+  EXPECT_EQ(first.front(), 30);
+  EXPECT_EQ(first, json_ints(graph, "first_frame"));
+  EXPECT_EQ(json_ints(quality, "last_frame", submaps), json_ints(graph, "last_frame"));
+}
+
 TEST_F(SmallScenario, SameInputGivesByteIdenticalOutputs) {
   // Same input, config and threads: every output byte-identical (stats.json holds timings and is
   // left out). One and two threads: the same trajectory, since every parallel sum is reduced in a

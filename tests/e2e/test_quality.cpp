@@ -1,5 +1,5 @@
 // The run-quality report (quality.json, report.html) against the simulator's ground truth: the
-// frames it flags as degenerate are those whose true frame-to-frame error grows, and an unclosed
+// frames it flags as degenerate are those whose true frame-to-frame error grows, an unclosed
 // revisit shows as disagreeing submaps only while it is not closed.
 #include <algorithm>
 #include <cstdlib>
@@ -88,8 +88,14 @@ std::vector<std::pair<int, int>> disagreeing(const QualityReport& r) {
   return out;
 }
 
+// The open revisit, mapped once for the tests that judge it.
+const MappedDrive& open_revisit() {
+  static const MappedDrive open = map_revisit(false);
+  return open;
+}
+
 TEST(Quality, AnUnclosedRevisitIsFlaggedAndAClosedOneIsNot) {
-  const MappedDrive open = map_revisit(false);
+  const MappedDrive& open = open_revisit();
   const auto flagged = disagreeing(open.report);
   ASSERT_FALSE(flagged.empty()) << "consecutive shift " << open.report.consecutive_shift;
   for (const auto& [a, b] : flagged) {
@@ -107,6 +113,56 @@ TEST(Quality, AnUnclosedRevisitIsFlaggedAndAClosedOneIsNot) {
 
   const MappedDrive closed = map_revisit(true);
   EXPECT_TRUE(disagreeing(closed.report).empty()) << closed.report.verdict[0];
+}
+
+// The quality: section of the config reaches the flags: the same drive judged with a larger
+// factor flags no pair, with a higher conditioning threshold more frames.
+TEST(Quality, ConfigKeysChangeTheFlags) {
+  const MappedDrive& open = open_revisit();
+  ASSERT_FALSE(disagreeing(open.report).empty());
+  const MappingConfig lenient = MappingConfig::parse("quality:\n  inconsistent_factor: 1000\n", "test");
+  EXPECT_TRUE(disagreeing(assess_quality(*open.pipeline, lenient.quality)).empty());
+  const auto degenerate = [](const QualityReport& r) {
+    return std::count_if(r.frames.begin(), r.frames.end(), [](const auto& f) { return f.degenerate; });
+  };
+  const MappingConfig strict = MappingConfig::parse("quality:\n  degenerate_conditioning: 0.9\n", "test");
+  EXPECT_GT(degenerate(assess_quality(*open.pipeline, strict.quality)), degenerate(open.report) + 10);
+}
+
+// Every submap of more than one keyframe measures its keyframes' disagreement, and it is the
+// baseline of its pairs: averaged over the keyframes, it predicts the shift of consecutive submaps.
+// A noisier sensor makes the keyframes disagree more.
+TEST(Quality, SubmapNoiseIsTheKeyframesDisagreement) {
+  const MappedDrive& noisy = open_revisit();
+  const MappedDrive clean = map_drive("small", 0);
+  const auto mid = [](std::vector<double> v) {
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return v[v.size() / 2];
+  };
+  std::vector<double> noise[2];
+  for (int k = 0; k < 2; ++k) {
+    const MappedDrive& d = k == 0 ? clean : noisy;
+    for (const SubmapQualityRecord& s : d.report.submaps) {
+      const Submap& submap = d.pipeline->submaps()[s.id];
+      ASSERT_EQ(submap.keyframe_noise.has_value(), submap.keyframes.size() > 1) << s.id;
+      if (!submap.keyframe_noise) continue;
+      EXPECT_EQ(s.baseline, NoiseBaseline::keyframes);
+      EXPECT_DOUBLE_EQ(s.keyframe_noise, *submap.keyframe_noise);
+      EXPECT_LT(s.keyframe_noise, 0.05) << s.id;  // m: far below the drift a revisit flags
+      noise[k].push_back(s.keyframe_noise);
+    }
+    std::vector<double> predicted;
+    for (const SubmapPairRecord& p : d.report.pairs) {
+      EXPECT_NEAR(p.limit, std::max(0.02, 4.0 * p.noise), 1e-12);
+      if (p.source == p.target + 1) predicted.push_back(p.noise);
+    }
+    ASSERT_FALSE(predicted.empty());
+    EXPECT_GT(mid(predicted), d.report.consecutive_shift / 4.0);
+    EXPECT_LT(mid(predicted), d.report.consecutive_shift * 4.0);
+  }
+  ASSERT_GT(noise[0].size(), 5u);
+  ASSERT_GT(noise[1].size(), 5u);
+  EXPECT_GT(mid(noise[1]), 1.5 * mid(noise[0]));
 }
 
 // report.html in headless Chromium (as view.html in test_viewer_browser.cpp): it loads without a

@@ -306,6 +306,34 @@ void visit_localize_merge_output(Config& c, Visitor& v) {
   v("output", "pcd", c.output.pcd, KeyDoc{"-", 0, 0, "apps/gcmap/", "Also write the map as map.pcd, beside map.ply."});
 }
 
+template <typename Config, typename Visitor>
+void visit_quality(Config& c, Visitor& v) {
+  v("quality", "degenerate_conditioning", c.quality.degenerate_conditioning,
+    KeyDoc{"-", 0, 1, "mapping/",
+           "quality.json flags a frame degenerate when the translation conditioning of its registration (smallest over "
+           "largest eigenvalue of the translation information) is below this."});
+  v("quality", "inconsistent_factor", c.quality.inconsistent_factor,
+    KeyDoc{"-", 1, 1000, "mapping/",
+           "Two overlapping submaps disagree when registering one onto the other moves it more than this times their noise: "
+           "what their keyframes disagree among themselves, averaged over each submap's keyframes (for submaps loaded from a "
+           "session: the median shift of consecutive submaps)."});
+  v("quality", "min_shift", c.quality.min_shift,
+    KeyDoc{"m", 0, 100, "mapping/", "... and by at least this: below it a disagreement does not matter for a map."});
+  v("quality", "pair_radius", c.quality.pair_radius,
+    KeyDoc{"m", 0.1, 10000, "mapping/", "Submaps whose origins are this close are registered onto each other and compared."});
+  v("quality", "min_pair_inliers", c.quality.min_pair_inliers,
+    KeyDoc{"-", 0.01, 1, "mapping/",
+           "A compared pair counts only when at least this fraction of the source submap's points meet the other's voxels "
+           "after registration: less overlap says nothing about consistency."});
+  v("quality", "coarse_resolution", c.quality.coarse_resolution,
+    KeyDoc{"m", 0.1, 100, "mapping/",
+           "A pair that overlaps too little at its final poses (a revisit that drifted apart) is registered first at voxels "
+           "of this size, then at global.voxel_resolution; a drift up to about this much is found."});
+  v("quality", "stamp_gap_factor", c.quality.stamp_gap_factor,
+    KeyDoc{"-", 1, 1000, "mapping/",
+           "A stamp interval over this times the median one (or a stamp not increasing) is reported as an anomaly."});
+}
+
 // Visits every (section, key, field, doc) once, for loading, dumping, checking and documenting.
 template <typename Config, typename Visitor>
 void visit(Config& c, Visitor&& v) {
@@ -314,6 +342,7 @@ void visit(Config& c, Visitor&& v) {
   visit_global(c, v);
   visit_loop(c, v);
   visit_localize_merge_output(c, v);
+  visit_quality(c, v);
 }
 
 // Every section and key must be a known plain name.

@@ -101,6 +101,19 @@ struct MergeConfig {
   int max_iterations = 50;  // joint LM over all sessions
 };
 
+// The run-quality report (mapping/quality.hpp): what its flags take.
+struct QualityConfig {
+  double degenerate_conditioning = 0.05;  // a frame's translation conditioning below this: degenerate
+  // Two overlapping submaps disagree when re-registering one onto the other moves it more than
+  // this many times the noise (QualityReport) and by at least min_shift m.
+  double inconsistent_factor = 4.0;
+  double min_shift = 0.02;
+  double pair_radius = 20.0;       // m between submap origins: pairs compared
+  double min_pair_inliers = 0.3;   // a pair overlapping less after registration says nothing
+  double coarse_resolution = 2.0;  // m: voxels of the coarse registration of a pair that drifted apart
+  double stamp_gap_factor = 1.5;   // a stamp interval over this times the median one is an anomaly
+};
+
 struct OutputConfig {
   double map_resolution = 0.1;
   bool pcd = false;
@@ -121,6 +134,7 @@ struct MappingConfig {
   LocalizationConfig localize;
   MergeConfig merge;
   OutputConfig output;
+  QualityConfig quality;
 
   // Throws Error("PATH: ...") naming the offending key.
   static MappingConfig load(const std::string& path);

@@ -31,6 +31,17 @@ Json submaps_json(const Mapper& mapper, int frame_offset) {
 
 }  // namespace
 
+Json loop_json(const LoopRecord& l) {
+  Json j = Json::object();
+  j["source"] = l.source;
+  j["target"] = l.target;
+  j["descriptor_distance"] = l.descriptor_distance;
+  j["inlier_fraction"] = l.inlier_fraction;
+  j["inlier_rmse"] = l.inlier_rmse;
+  j["accepted"] = l.accepted;
+  return j;
+}
+
 Json graph_json(const MappingPipeline& pipeline, int frame_offset) {
   const Mapper& mapper = pipeline.mapper();
   Json graph = Json::object();
@@ -51,16 +62,7 @@ Json graph_json(const MappingPipeline& pipeline, int frame_offset) {
   }
   graph["factors"] = factors;
   Json loops = Json::array();  // every verified candidate, accepted or not
-  for (const LoopRecord& l : mapper.loops()) {
-    Json j = Json::object();
-    j["source"] = l.source;
-    j["target"] = l.target;
-    j["descriptor_distance"] = l.descriptor_distance;
-    j["inlier_fraction"] = l.inlier_fraction;
-    j["inlier_rmse"] = l.inlier_rmse;
-    j["accepted"] = l.accepted;
-    loops.push_back(j);
-  }
+  for (const LoopRecord& l : mapper.loops()) loops.push_back(loop_json(l));
   graph["loop_candidates"] = loops;
   return graph;
 }

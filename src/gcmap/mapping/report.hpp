@@ -6,6 +6,9 @@
 
 namespace gcmap {
 
+// A verified loop candidate, the same in graph.json and quality.json.
+Json loop_json(const LoopRecord& l);
+
 // Submaps (pose in the output frame, frames, points), every factor with its final error and
 // robust weight, every verified loop candidate. frame_offset is added to frame numbers (--start).
 Json graph_json(const MappingPipeline& pipeline, int frame_offset = 0);

@@ -1,6 +1,7 @@
 #include "gcmap/mapping/submap_builder.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 #include "gcmap/core/preprocess.hpp"
 #include "gcmap/graph/levenberg_marquardt.hpp"
@@ -82,7 +83,36 @@ SubmapBuilder::Result SubmapBuilder::add_frame(int frame, const std::shared_ptr<
   return r;
 }
 
-std::vector<Eigen::Isometry3d> SubmapBuilder::optimize_keyframes(const Eigen::Isometry3d& T_odom_submap) {
+namespace {
+
+// m: how far a factor alone would move its source keyframe from the joint optimum, its target held
+// fixed (one Gauss-Newton step: the factor's minimum in its quadratic model). Like a submap pair's
+// re-registration shift (mapping/quality.cpp), from the final estimate; NaN when unconstrained.
+double single_factor_shift(Factor& f, const Values& poses) {
+  const Eigen::Isometry3d* p[2] = {&poses.at(f.keys()[0]), &poses.at(f.keys()[1])};
+  FactorLinearization lin;
+  f.linearize(p, lin);
+  const Eigen::LDLT<Matrix6d> ldlt(lin.H.topLeftCorner<6, 6>());
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return std::nan("");
+  const Vector6d step = -ldlt.solve(lin.b.head<6>());
+  return step.tail<3>().norm();  // [rotation; translation]
+}
+
+// The median over consecutive keyframes: they overlap most (keyframes farther apart may hardly),
+// and consecutive submaps are the fallback baseline, so the two figures compare like with like.
+std::optional<float> keyframe_noise(const std::vector<std::shared_ptr<Factor>>& consecutive, const Values& poses) {
+  std::vector<double> shifts;
+  for (const auto& f : consecutive)
+    if (const double s = single_factor_shift(*f, poses); std::isfinite(s)) shifts.push_back(s);
+  if (shifts.empty()) return std::nullopt;
+  std::nth_element(shifts.begin(), shifts.begin() + shifts.size() / 2, shifts.end());
+  return static_cast<float>(shifts[shifts.size() / 2]);
+}
+
+}  // namespace
+
+std::vector<Eigen::Isometry3d> SubmapBuilder::optimize_keyframes(const Eigen::Isometry3d& T_odom_submap,
+                                                                 std::optional<float>& noise) {
   const int n = static_cast<int>(open_.size());
   Values local;
   for (int k = 0; k < n; ++k) local[k] = T_odom_submap.inverse() * open_[k].T_odom;
@@ -90,17 +120,23 @@ std::vector<Eigen::Isometry3d> SubmapBuilder::optimize_keyframes(const Eigen::Is
     // Fully connected: every keyframe pair gets a VGICP factor (source later, target earlier).
     Stopwatch w;
     FactorGraph g;
+    std::vector<std::shared_ptr<Factor>> consecutive;
     for (int b = 1; b < n; ++b) {
       auto source = config_.factor_source_points > 0
                         ? std::make_shared<const PointCloud>(evenly_subsampled(*open_[b].cloud, config_.factor_source_points))
                         : open_[b].cloud;
-      for (int a = 0; a < b; ++a) g.add(std::make_shared<MatchingCostFactor>(b, a, source, open_[a].voxels, TrialVoxels::kept));
+      for (int a = 0; a < b; ++a) {
+        auto f = std::make_shared<MatchingCostFactor>(b, a, source, open_[a].voxels, TrialVoxels::kept);
+        if (a == b - 1) consecutive.push_back(f);
+        g.add(std::move(f));
+      }
     }
     stats_.factors.add(w.lap_ms());
     LMConfig lc;
     lc.max_iterations = config_.max_iterations;
     lc.relative_error_tol = config_.relative_error_tol;
     LevenbergMarquardt(lc, backend_).optimize(g, local, {0});
+    noise = keyframe_noise(consecutive, local);
     stats_.optimization.add(w.lap_ms());
   }
   std::vector<Eigen::Isometry3d> out;
@@ -114,7 +150,7 @@ std::optional<Submap> SubmapBuilder::close() {
   Submap s;
   s.id = next_id_++;
   s.T_odom = open_.front().T_odom;
-  s.T_submap_keyframe = optimize_keyframes(s.T_odom);
+  s.T_submap_keyframe = optimize_keyframes(s.T_odom, s.keyframe_noise);
   for (Keyframe& k : open_) {
     s.keyframes.push_back(k.frame);
     if (loop_.enabled) s.descriptors.push_back(std::move(k.descriptor));

@@ -64,8 +64,9 @@ class SubmapBuilder {
   // shape: the cloud's, when made ahead; else made here.
   Keyframe make_keyframe(int frame, const Eigen::Isometry3d& T_odom, const std::shared_ptr<const PointCloud>& cloud,
                          std::optional<KeyframeShape> shape) const;
-  // Keyframe poses in the submap frame, optimized with every keyframe pair as a factor.
-  std::vector<Eigen::Isometry3d> optimize_keyframes(const Eigen::Isometry3d& T_odom_submap);
+  // Keyframe poses in the submap frame, optimized with every keyframe pair as a factor; noise:
+  // how much the keyframes disagree at the optimum (Submap::keyframe_noise).
+  std::vector<Eigen::Isometry3d> optimize_keyframes(const Eigen::Isometry3d& T_odom_submap, std::optional<float>& noise);
   Submap merge(Submap s) const;
 
   LocalMappingConfig config_;

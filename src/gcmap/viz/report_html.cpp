@@ -73,12 +73,13 @@ std::string flagged_frames_table(const QualityReport& r) {
 
 std::string pairs_table(const QualityReport& r) {
   std::string t =
-      "<table id=\"pairs\"><tr><th>submaps</th><th>shift (m)</th><th>rotation "
-      "(deg)</th><th>inliers</th><th>consistent</th></tr>\n";
+      "<table id=\"pairs\"><tr><th>submaps</th><th>shift (m)</th><th>limit (m)</th><th>rotation "
+      "(deg)</th><th>inliers</th><th>coarse</th><th>consistent</th></tr>\n";
   for (const SubmapPairRecord& p : r.pairs)
     if (p.source > p.target + 1)
-      t += row({std::to_string(p.target) + "-" + std::to_string(p.source), num("%.3f", p.shift), num("%.2f", p.rotation_deg),
-                num("%.2f", p.inlier_fraction), p.inconsistent ? "no" : "yes"});
+      t += row({std::to_string(p.target) + "-" + std::to_string(p.source), num("%.3f", p.shift), num("%.3f", p.limit),
+                num("%.2f", p.rotation_deg), num("%.2f", p.inlier_fraction), p.coarse ? "yes" : "no",
+                p.inconsistent ? "no" : "yes"});
   return t + "</table>\n";
 }
 
@@ -113,9 +114,9 @@ function drawMap() {
   for (let i = 0; i < T.length; i += 2) { xs.push(T[i]); ys.push(T[i + 1]); }
   for (let i = 0; i < P.length; i += 3 * 50) { xs.push(P[i]); ys.push(P[i + 1]); }
   if (!xs.length) return 0;
-  const [fx, fy] = fit(c, xs, ys), S = D.quality.submaps, lim = D.limit;
+  const [fx, fy] = fit(c, xs, ys), S = D.quality.submaps;
   for (let i = 0; i < P.length; i += 3) {
-    const s = S[P[i + 2]], w = s.worst_shift / lim;
+    const s = S[P[i + 2]], w = s.worst_ratio;
     g.fillStyle = s.inconsistent ? '#d62728' : w > 0.5 ? '#ff9f1c' : '#7f9f7f';
     g.fillRect(fx(P[i]), fy(P[i + 1]), 1.5, 1.5);
   }
@@ -149,7 +150,6 @@ std::string report_html(const QualityReport& r, const MappingPipeline& pipeline,
   const size_t inconsistent = std::count_if(r.pairs.begin(), r.pairs.end(), [](const auto& p) { return p.inconsistent; });
   Json data = Json::object();
   data["quality"] = quality_json(r);
-  data["limit"] = std::max(r.thresholds.min_shift, r.thresholds.inconsistent_factor * r.consecutive_shift);
   data["points"] = map_points(pipeline, max_points);
   data["trajectory"] = trajectory_xy(pipeline);
   std::string json = data.dump();
