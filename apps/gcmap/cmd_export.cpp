@@ -2,17 +2,20 @@
 // the geodetic origin of the map frame is given.
 #include <spdlog/spdlog.h>
 
+#include <atomic>
 #include <cstdio>
 #include <filesystem>
 #include <optional>
 #include <regex>
 
 #include "commands.hpp"
+#include "export_scans.hpp"
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/se3.hpp"
 #include "gcmap/io/file.hpp"
 #include "gcmap/io/geo.hpp"
 #include "gcmap/io/las.hpp"
+#include "gcmap/io/occupancy_grid_io.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "gcmap/mapping/mapper.hpp"
@@ -26,12 +29,24 @@ namespace fs = std::filesystem;
 
 enum class ExportFormat { las, ply, pcd };
 enum class MapSource { automatic, session, map_ply };
+// What is exported: the map's points, a navigation grid, or every scan on its own.
+enum class ExportKind { map, grid, per_scan };
 
 struct ExportOptions {
   std::string input, output, format = "las", origin, crs, from = "auto", intensity = "auto";
   size_t max_points = 20'000'000;
   bool quiet = false;
+  bool grid = false, per_scan = false;
+  std::string scans;                    // the recording, when it moved since the run
+  double grid_resolution = 0.05;        // m
+  std::string grid_height = "0.3,2.0";  // m above the local ground
+  float grid_max_range = 40.f;          // m
 };
+
+ExportKind export_kind(const ExportOptions& o) {
+  if (o.grid && o.per_scan) throw Error("--grid and --per-scan: one export at a time");
+  return o.grid ? ExportKind::grid : o.per_scan ? ExportKind::per_scan : ExportKind::map;
+}
 
 // The map in the map frame, with the submap of each point when it came from the session.
 struct ExportMap {
@@ -136,12 +151,17 @@ IntensityScaling intensity_scaling(const ExportOptions& o, const PointCloud& clo
   return o.intensity == "auto" ? detect_intensity_scaling(cloud.intensities) : parse_intensity_scaling(o.intensity);
 }
 
+// Map-frame points into the CRS of the export (none: left in the map frame).
+void georeference(LasCloud& las, const std::optional<Georeference>& g) {
+  if (!g || !g->crs) return;
+  for (Eigen::Vector3d& p : las.points) p = g->T_ecef_map * p;
+  g->crs->from_ecef(las.points);
+}
+
 LasCloud georeferenced_las(const ExportMap& m, const std::optional<Georeference>& g, IntensityScaling scaling) {
   LasCloud las = las_cloud(m.cloud, Eigen::Isometry3d::Identity(), scaling, 0, 0.0);
   if (!m.source_ids.empty()) las.point_source_ids = m.source_ids;
-  if (!g || !g->crs) return las;
-  for (Eigen::Vector3d& p : las.points) p = g->T_ecef_map * p;
-  g->crs->from_ecef(las.points);
+  georeference(las, g);
   return las;
 }
 
@@ -248,7 +268,186 @@ Json export_json(const ExportOptions& o, const ExportMap& m, const std::optional
   return j;
 }
 
+// --grid-height "MIN,MAX" in metres above the local ground.
+GridOptions grid_options(const ExportOptions& o) {
+  GridOptions g;
+  g.resolution = o.grid_resolution;
+  g.max_range = o.grid_max_range;
+  char tail = 0;
+  if (std::sscanf(o.grid_height.c_str(), "%f,%f%c", &g.height_min, &g.height_max, &tail) != 2)
+    throw Error("--grid-height: expected MIN,MAX in metres above the ground, got \"" + o.grid_height + "\"");
+  if (!(g.height_min < g.height_max)) throw Error("--grid-height: MIN must be below MAX, got \"" + o.grid_height + "\"");
+  if (!(g.resolution > 0.0) || !(g.resolution <= 10.0)) throw Error("--grid-resolution: expected (0, 10] m");
+  if (!(g.max_range > g.min_range)) throw Error("--grid-max-range: must exceed 1 m");
+  return g;
+}
+
+void write_json(const std::string& path, const Json& j) {
+  write_file_atomic(path, [&](std::ostream& s) { s << j.dump() << "\n"; });
+}
+
+std::string joined(const std::vector<std::string>& names) {
+  std::string list;
+  for (const std::string& f : names) list += (list.empty() ? "" : ", ") + f;
+  return list;
+}
+
+Json grid_json(const ExportOptions& o, const GridOptions& g, const GridResult& r) {
+  Json j = Json::object();
+  j["input"] = o.input;
+  j["source"] = r.source;
+  j["resolution"] = g.resolution;
+  j["height_band"] = Json(Json::Array{g.height_min, g.height_max});
+  j["height_reference"] = "the local ground: the lowest return within about 1.5 m";
+  j["max_range"] = g.max_range;
+  j["size"] = Json(Json::Array{r.grid.width, r.grid.height});
+  j["origin"] = Json(Json::Array{r.grid.origin.x(), r.grid.origin.y(), 0.0});
+  j["occupied_cells"] = r.grid.count(Occupancy::occupied);
+  j["free_cells"] = r.grid.count(Occupancy::free);
+  j["unknown_cells"] = r.grid.count(Occupancy::unknown);
+  j["files"] = Json(Json::Array{"map.pgm", "map.yaml", "export.json"});
+  return j;
+}
+
+int run_grid(const ExportOptions& o) {
+  if (!o.origin.empty() || !o.crs.empty()) throw Error("--grid: the grid is in the map frame; --origin and --crs are for points");
+  const GridOptions g = grid_options(o);
+  if (!fs::is_directory(o.input)) throw Error(o.input + ": not a folder (give the output folder of gcmap map)");
+  const std::string input = recorded_input(o.input, o.scans);
+  if (input.empty()) spdlog::warn("{}: the scans it was mapped from are not on disk: rays from the session's submaps", o.input);
+  Progress progress("export: occupancy grid (two passes)", 0, o.quiet);
+  const GridResult r = make_grid(o.input, input, g,
+                                 [&](size_t done, size_t total) { progress.update(done, "(of " + std::to_string(total) + ")"); });
+  progress.finish();
+  if (!o.quiet) spdlog::info("{}", r.source);
+  if (r.grid.cells.empty()) throw Error(o.input + ": no return fell in the grid's range and height band; nothing written");
+  std::error_code ec;
+  fs::create_directories(o.output, ec);
+  if (ec) throw Error(o.output + ": cannot create the output folder (" + ec.message() + ")");
+  write_folder_contents_atomic(o.output, [&](const std::string& staging) {
+    write_map_server(staging, "map", r.grid);
+    write_json((fs::path(staging) / "export.json").string(), grid_json(o, g, r));
+  });
+  std::fprintf(stderr,
+               "Made a %d x %d occupancy grid at %.3f m (%zu occupied, %zu free cells) in %.1f s. Wrote %s: map.pgm, map.yaml, "
+               "export.json.\n",
+               r.grid.width, r.grid.height, g.resolution, r.grid.count(Occupancy::occupied), r.grid.count(Occupancy::free),
+               progress.seconds(), o.output.c_str());
+  return 0;
+}
+
+std::vector<std::string> per_scan_assumptions(const ExportOptions& o, const std::string& input,
+                                              const std::optional<Georeference>& g) {
+  std::vector<std::string> a;
+  a.push_back("points: every scan of " + input +
+              " as recorded (no filtering or elevation correction), moved into the map frame by the final trajectory, each "
+              "point by the pose at its own time when the scan has per-point times (interpolated to the next frame)");
+  a.push_back("files: scans/NNNNNN with NNNNNN the frame index (the line of trajectory.tum); poses.tum: each scan's pose");
+  if (!g) a.push_back("coordinates: the map frame (frame 0's sensor frame), no CRS");
+  else if (!g->crs) a.push_back("coordinates: local ENU at the origin (map frame axes taken as east, north, up), no CRS");
+  else a.push_back("coordinates: " + g->crs->name() + " (EPSG:" + std::to_string(g->crs->epsg()) + ")");
+  if (parse_format(o.format) == ExportFormat::las) {
+    a.push_back("point source id: the frame index; gps time: the scan's stamp plus the point's time (the input's clock)");
+    a.push_back(o.intensity == "auto" ? "intensity: unit or raw scaling decided per scan (values all in [0, 1]: unit)"
+                                      : "intensity: " + o.intensity + " scaling");
+  } else {
+    a.push_back("fields: x y z, intensity and time (s after the scan's stamp) where the scan has them");
+  }
+  return a;
+}
+
+std::string scan_name(size_t frame, ExportFormat f) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "scans/%06zu.%s", frame,
+                f == ExportFormat::las   ? "las"
+                : f == ExportFormat::ply ? "ply"
+                                         : "pcd");
+  return buf;
+}
+
+void write_scan(const ExportOptions& o, const MappedScan& s, const std::optional<Georeference>& g, const std::string& staging) {
+  const ExportFormat f = parse_format(o.format);
+  const std::string path = (fs::path(staging) / scan_name(s.frame, f)).string();
+  if (f == ExportFormat::ply) return write_ply(path, s.cloud);
+  if (f == ExportFormat::pcd) return write_pcd(path, s.cloud);
+  const IntensityScaling scaling = intensity_scaling(o, s.cloud);
+  LasCloud las = las_cloud(s.cloud, Eigen::Isometry3d::Identity(), scaling, static_cast<uint16_t>(s.frame), s.stamp);
+  georeference(las, g);
+  LasWriteOptions w;
+  if (g && g->crs) w.wkt = g->crs->wkt();
+  write_las(path, las, w);
+}
+
+std::vector<std::string> write_scans(const ExportOptions& o, const std::string& input, const Trajectory& t,
+                                     const std::optional<Georeference>& g, const std::string& staging) {
+  fs::create_directories(fs::path(staging) / "scans");
+  Progress progress("export: scans", t.size(), o.quiet);
+  std::atomic<size_t> points{0};
+  for_each_mapped_scan(
+      o.input, input, t,
+      [&](MappedScan& s) {
+        write_scan(o, s, g, staging);
+        points += s.cloud.size();
+      },
+      [&](size_t done, size_t) { progress.update(done, std::to_string(points.load()) + " points"); });
+  progress.finish();
+  Trajectory poses = t;
+  poses.format = TrajectoryFormat::tum;
+  write_trajectory((fs::path(staging) / "poses.tum").string(), poses);
+  std::vector<std::string> files = {"scans/ (" + std::to_string(t.size()) + " files)", "poses.tum"};
+  if (g)
+    for (const std::string& name : write_trajectories(t, *g, staging)) files.push_back(name);
+  return files;
+}
+
+Json per_scan_json(const ExportOptions& o, const std::string& input, const std::optional<Georeference>& g,
+                   const std::vector<std::string>& assumed, size_t frames) {
+  Json j = Json::object();
+  j["input"] = o.input;
+  j["source"] = input;
+  j["format"] = o.format;
+  j["scans"] = frames;
+  if (g) j["origin"] = Json(Json::Array{g->origin.lat_deg, g->origin.lon_deg, g->origin.alt_m});
+  if (g && g->crs) j["crs"] = "EPSG:" + std::to_string(g->crs->epsg());
+  Json a = Json::array();
+  for (const std::string& line : assumed) a.push_back(line);
+  j["assumptions"] = a;
+  return j;
+}
+
+int run_per_scan(const ExportOptions& o) {
+  const ExportFormat format = parse_format(o.format);
+  const std::optional<Georeference> g = make_georeference(o);
+  if (g && g->crs && format != ExportFormat::las)
+    throw Error("--crs: needs --format las (PLY and PCD hold float32 coordinates: steps of 0.5 m at UTM northings)");
+  if (!fs::is_directory(o.input)) throw Error(o.input + ": not a folder (give the output folder of gcmap map)");
+  const std::string input = recorded_input(o.input, o.scans);
+  if (input.empty())
+    throw Error(o.input + ": the scans it was mapped from are not on disk (see stats.json); give them with --scans");
+  const Trajectory t = read_trajectory((fs::path(o.input) / "trajectory.tum").string());
+  if (format == ExportFormat::las && t.size() > 65536)
+    throw Error(o.input + ": " + std::to_string(t.size()) + " frames do not fit LAS's 16-bit point source id");
+  const std::vector<std::string> assumed = per_scan_assumptions(o, input, g);
+  for (const std::string& line : assumed) spdlog::info("{}", line);
+  std::error_code ec;
+  fs::create_directories(o.output, ec);
+  if (ec) throw Error(o.output + ": cannot create the output folder (" + ec.message() + ")");
+  std::vector<std::string> files;
+  Stopwatch clock;
+  write_folder_contents_atomic(o.output, [&](const std::string& staging) {
+    files = write_scans(o, input, t, g, staging);
+    files.push_back("export.json");
+    write_json((fs::path(staging) / "export.json").string(), per_scan_json(o, input, g, assumed, t.size()));
+  });
+  std::fprintf(stderr, "Exported %zu scans in %.1f s. Wrote %s: %s.\n", t.size(), clock.ms() / 1e3, o.output.c_str(),
+               joined(files).c_str());
+  return 0;
+}
+
 int run_export(const ExportOptions& o) {
+  const ExportKind kind = export_kind(o);
+  if (kind == ExportKind::grid) return run_grid(o);
+  if (kind == ExportKind::per_scan) return run_per_scan(o);
   const ExportFormat format = parse_format(o.format);
   const MapSource from = parse_source(o.from);
   const std::optional<Georeference> g = make_georeference(o);
@@ -301,6 +500,16 @@ void add_export(CLI::App& app, Runner& run) {
       ->capture_default_str();
   cmd->add_option("--max-points", o->max_points, "Points per LAS file: larger maps are tiled as map_000.las, map_001.las, ...")
       ->capture_default_str();
+  cmd->add_flag("--grid", o->grid,
+                "An occupancy grid for Nav2 / ROS map_server instead (map.pgm, map.yaml), made by casting every scan's rays");
+  cmd->add_option("--grid-resolution", o->grid_resolution, "Grid cell size in m")->capture_default_str();
+  cmd->add_option("--grid-height", o->grid_height, "MIN,MAX: the obstacle band in m above the local ground")
+      ->capture_default_str();
+  cmd->add_option("--grid-max-range", o->grid_max_range, "Returns farther than this (m, in the plane) are not used for the grid")
+      ->capture_default_str();
+  cmd->add_flag("--per-scan", o->per_scan,
+                "Every scan on its own in the map frame instead (scans/NNNNNN.las|ply|pcd, poses.tum), with intensity and time");
+  cmd->add_option("--scans", o->scans, "The recording the map was made from, when it is no longer where stats.json says");
   cmd->add_flag("--quiet", o->quiet, "No progress");
   cmd->callback([o, &run] { run = [o] { return run_export(*o); }; });
 }

@@ -260,6 +260,7 @@ Json InputAssumptions::to_json() const {
   j["input"] = input;
   j["layout_kind"] = layout_name(layout);
   j["scans"] = scans;
+  if (layout == InputLayout::bag) j["topic"] = topic;  // export re-reads the scans from it
   j["stamp_source"] = stamp_source_name(stamp_source);
   if (!times_path.empty()) j["times_file"] = times_path;
   if (stamp_source == StampSource::assumed_rate) j["assumed_rate_hz"] = assumed_rate_hz;

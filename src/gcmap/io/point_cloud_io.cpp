@@ -63,15 +63,25 @@ PointCloud read_point_cloud(const std::string& path, BinFields bin_fields) {
 }
 
 namespace {
-// float32 x y z records, with intensity when with_i (0 where the cloud has none).
-void write_records(std::ostream& out, const PointCloud& cloud, bool with_i) {
+// float32 x y z records, then intensity when with_i (0 where the cloud has none), then time when
+// with_t (s after the scan's stamp).
+void write_records(std::ostream& out, const PointCloud& cloud, bool with_i, bool with_t = false) {
   std::vector<float> buf;
-  buf.reserve(cloud.size() * 4);
+  buf.reserve(cloud.size() * (3 + with_i + with_t));
   for (size_t i = 0; i < cloud.size(); ++i) {
     buf.insert(buf.end(), cloud.points[i].data(), cloud.points[i].data() + 3);
     if (with_i) buf.push_back(cloud.has_intensities() ? cloud.intensities[i] : 0.0f);
+    if (with_t) buf.push_back(cloud.times[i]);
   }
   out.write(reinterpret_cast<const char*>(buf.data()), static_cast<std::streamsize>(buf.size() * sizeof(float)));
+}
+
+// The optional float fields written after x y z.
+std::vector<std::string> extra_fields(const PointCloud& cloud) {
+  std::vector<std::string> names;
+  if (cloud.has_intensities()) names.push_back("intensity");
+  if (cloud.has_times()) names.push_back("time");
+  return names;
 }
 }  // namespace
 
@@ -80,19 +90,20 @@ void write_ply(const std::string& path, const PointCloud& cloud) {
   write_file_atomic(path, [&](std::ostream& out) {
     out << "ply\nformat binary_little_endian 1.0\ncomment written by gcmap\nelement vertex " << cloud.size()
         << "\nproperty float x\nproperty float y\nproperty float z\n";
-    if (cloud.has_intensities()) out << "property float intensity\n";
+    for (const std::string& name : extra_fields(cloud)) out << "property float " << name << "\n";
     out << "end_header\n";
-    write_records(out, cloud, cloud.has_intensities());
+    write_records(out, cloud, cloud.has_intensities(), cloud.has_times());
   });
 }
 
 void write_pcd(const std::string& path, const PointCloud& cloud) {
   write_file_atomic(path, [&](std::ostream& out) {
-    const bool with_i = cloud.has_intensities();
-    out << "# .PCD v0.7 - written by gcmap\nVERSION 0.7\nFIELDS x y z" << (with_i ? " intensity" : "") << "\nSIZE 4 4 4"
-        << (with_i ? " 4" : "") << "\nTYPE F F F" << (with_i ? " F" : "") << "\nCOUNT 1 1 1" << (with_i ? " 1" : "") << "\nWIDTH "
-        << cloud.size() << "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << cloud.size() << "\nDATA binary\n";
-    write_records(out, cloud, cloud.has_intensities());
+    std::string fields = "x y z", size = "4 4 4", type = "F F F", count = "1 1 1";
+    for (const std::string& name : extra_fields(cloud)) fields += " " + name, size += " 4", type += " F", count += " 1";
+    out << "# .PCD v0.7 - written by gcmap\nVERSION 0.7\nFIELDS " << fields << "\nSIZE " << size << "\nTYPE " << type
+        << "\nCOUNT " << count << "\nWIDTH " << cloud.size() << "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << cloud.size()
+        << "\nDATA binary\n";
+    write_records(out, cloud, cloud.has_intensities(), cloud.has_times());
   });
 }
 

@@ -15,7 +15,8 @@ BinFields parse_bin_fields(const std::string& name);
 // Non-finite points are dropped (counted in the log). Malformed input throws Error("PATH: ...").
 PointCloud read_point_cloud(const std::string& path, BinFields bin_fields = BinFields::xyzi);
 
-// Binary PLY / binary PCD with x y z and intensity when present, written atomically.
+// Binary PLY / binary PCD with x y z, then intensity and time (float32, s after the scan's stamp)
+// when present, written atomically. The readers take x y z and intensity.
 void write_ply(const std::string& path, const PointCloud& cloud);
 void write_pcd(const std::string& path, const PointCloud& cloud);
 // Raw float32 records in the given layout (intensity 0 where the cloud has none), written atomically.

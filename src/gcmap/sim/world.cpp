@@ -114,6 +114,46 @@ inline bool hit_cylinder(const Cylinder& cy, const Eigen::Vector3f& o, const Eig
 }
 }  // namespace
 
+namespace {
+bool overlaps(float a0, float a1, float b0, float b1) { return a0 <= b1 && b0 <= a1; }
+}  // namespace
+
+bool World::item_in_column(uint32_t item, const Eigen::Vector2f& p, float z0, float z1) const {
+  const uint32_t kind = item >> 28, id = item & 0x0fffffffu;
+  if (kind == 0) {
+    const Box& b = boxes_[id];
+    const bool always = std::isinf(b.t_begin) && std::isinf(b.t_end);
+    return always && (p.array() >= b.min.head<2>().array()).all() && (p.array() <= b.max.head<2>().array()).all() &&
+           overlaps(b.min.z(), b.max.z(), z0, z1);
+  }
+  if (kind == 1) {
+    const Cylinder& c = cylinders_[id];
+    return (p - c.center).squaredNorm() <= c.radius * c.radius && overlaps(c.z0, c.z1, z0, z1);
+  }
+  if (kind == 2) {
+    const Sphere& s = spheres_[id];
+    const float r2 = s.radius * s.radius - (p - s.center.head<2>()).squaredNorm();
+    if (s.porosity > 0.f || r2 < 0.f) return false;
+    return overlaps(s.center.z() - std::sqrt(r2), s.center.z() + std::sqrt(r2), z0, z1);
+  }
+  const OrientedBox& b = oboxes_[id];
+  const Eigen::Vector2f m = p - b.center.head<2>();
+  const float c = std::cos(b.yaw), sn = std::sin(b.yaw);
+  const Eigen::Vector2f l(c * m.x() + sn * m.y(), -sn * m.x() + c * m.y());
+  return std::abs(l.x()) <= b.half.x() && std::abs(l.y()) <= b.half.y() &&
+         overlaps(b.center.z() - b.half.z(), b.center.z() + b.half.z(), z0, z1);
+}
+
+bool World::column_solid(float x, float y, float z0, float z1) const {
+  const Eigen::Vector2f p(x, y), q = (p - origin_) / cell_;
+  const int cx = static_cast<int>(std::floor(q.x())), cy = static_cast<int>(std::floor(q.y()));
+  if (cx < 0 || cy < 0 || cx >= nx_ || cy >= ny_) return false;
+  const size_t c = static_cast<size_t>(cy) * nx_ + cx;
+  for (uint32_t i = cell_start_[c]; i < cell_start_[c + 1]; ++i)
+    if (item_in_column(cell_items_[i], p, z0, z1)) return true;
+  return false;
+}
+
 bool World::hit_item(uint32_t item, const Eigen::Vector3f& o, const Eigen::Vector3f& d, const Eigen::Vector3f& inv,
                      const RayContext& ctx, float& t, Hit& h) const {
   const uint32_t kind = item >> 28, id = item & 0x0fffffffu;

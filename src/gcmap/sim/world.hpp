@@ -89,6 +89,9 @@ class World {
   Eigen::Vector2f ground_gradient(float x, float y) const;
   bool raycast(const Eigen::Vector3f& origin, const Eigen::Vector3f& dir, float max_range, Hit& hit,
                const RayContext& ctx = {}) const;
+  // Ground truth for maps: whether a primitive that stands for the whole drive (not porous, not a
+  // parked car that comes or goes) occupies any height in [z0, z1] above map point (x, y).
+  bool column_solid(float x, float y, float z0, float z1) const;
 
   void add_box(const Box& b);
   void add_oriented_box(const OrientedBox& b);
@@ -105,6 +108,7 @@ class World {
   bool ground_hit(const Eigen::Vector3f& o, const Eigen::Vector3f& d, float t_max, float& t) const;
   bool hit_item(uint32_t item, const Eigen::Vector3f& o, const Eigen::Vector3f& d, const Eigen::Vector3f& inv,
                 const RayContext& ctx, float& t, Hit& h) const;
+  bool item_in_column(uint32_t item, const Eigen::Vector2f& p, float z0, float z1) const;
 
   Terrain terrain_;
   float max_grad_ = 0.f;
