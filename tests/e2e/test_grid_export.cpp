@@ -197,6 +197,8 @@ TEST(GridExport, OptionsAreCheckedBeforeAnythingIsRead) {
 
 // The figure for the closing note of issue #44, too slow for every run: a 600-frame city drive with
 // all of its realism (traffic, noise, dropouts). GCMAP_CITY_GRID=DIR reuses DIR/sim and DIR/out.
+// It fails today: a spurious return below the ground lowers the ground of its whole neighbourhood,
+// so the street reads as obstacles (#44 notes the fix, a ground per scan).
 TEST(CityDriveGrid, DISABLED_GridMatchesTheSimulatorsWalls) {
   test::TempDir tmp;
   const char* given = std::getenv("GCMAP_CITY_GRID");
