@@ -275,8 +275,10 @@ void visit_gnss(Config& c, Visitor& v) {
            "a multipath outlier of metres moves the map little."});
   v("gnss", "align_distance", c.gnss.align_distance,
     KeyDoc{"m", 1, 100000, "mapping/",
-           "The fixes must span this far horizontally (and ten times their horizontal sigma) before the map is turned and "
-           "moved onto them (yaw and translation); until then the first submap holds the gauge."});
+           "The fixes must span this far horizontally (and ten times their horizontal sigma), and spread across their main "
+           "direction by a sixth of this distance (RMS, and three sigmas: a rotation about a straight track is invisible to "
+           "positions), before the map is "
+           "turned and moved onto them (yaw and translation); until then the first submap holds the gauge."});
   v("gnss", "max_gap", c.gnss.max_gap,
     KeyDoc{"s", 0.01, 60, "mapping/",
            "A fix is placed between the two scans around its stamp; where they are further apart than this it is skipped."});

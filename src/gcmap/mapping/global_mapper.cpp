@@ -2,6 +2,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 
 #include "gcmap/core/error.hpp"
@@ -138,9 +139,23 @@ void GlobalMapper::take_gnss(std::vector<GnssMeasurement> gnss) {
   gnss_pending_.clear();
 }
 
+namespace {
+// RMS distance of the points from their horizontal principal line: while the fixes lie along one
+// line, a rotation of the map about it changes none of them, and a graph without a held pose would
+// turn freely about it.
+double lateral_spread(const std::vector<Eigen::Vector3d>& p) {
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (const Eigen::Vector3d& x : p) mean += x.head<2>() / double(p.size());
+  Eigen::Matrix2d C = Eigen::Matrix2d::Zero();
+  for (const Eigen::Vector3d& x : p) C += (x.head<2>() - mean) * (x.head<2>() - mean).transpose() / double(p.size());
+  return std::sqrt(std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(C).eigenvalues()(0)));
+}
+}  // namespace
+
 // The world so far is the first submap's frame, level as far as the sensor was at the start; a fit
-// of yaw and translation turns it onto the fixes (roll and pitch are left to the factors: a fit of
-// all three angles is ill-posed while the track is nearly straight).
+// of yaw and translation turns it onto the fixes (roll and pitch are left to the factors). It waits
+// until the fixes also spread across their main direction (align_distance / 6 RMS), so that the factors
+// see every rotation once no pose is held.
 bool GlobalMapper::try_georeference() {
   if (gnss_pending_.size() < 3) return false;
   std::vector<Eigen::Vector3d> world, enu;
@@ -153,7 +168,9 @@ bool GlobalMapper::try_georeference() {
     extent = std::max(extent, (m.p_enu - gnss_pending_.front().p_enu).head<2>().norm());
     sigma += m.sigma.head<2>().norm() / gnss_pending_.size();
   }
-  if (extent < std::max(gnss_.align_distance, 10.0 * sigma)) return false;
+  if (extent < std::max(gnss_.align_distance, 10.0 * sigma) ||
+      lateral_spread(enu) < std::max(gnss_.align_distance / 6.0, 3.0 * sigma))
+    return false;
   const Eigen::Isometry3d T_enu_world = fit_yaw_translation(world, enu, weights);
   for (auto& [key, T] : values_) T = normalized(T_enu_world * T);
   georeferenced_ = true;
