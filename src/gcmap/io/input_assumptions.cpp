@@ -246,8 +246,10 @@ void decide_gnss(InputAssumptions& a, const InputOptions& o) {
   char origin[128];
   std::snprintf(origin, sizeof(origin), "%.8f, %.8f, %.3f m", first.position.lat_deg, first.position.lon_deg,
                 first.position.alt_m);
-  a.gnss = {std::to_string(a.gnss_fixes.size()) + " fixes; map frame: local ENU (x east, y north, z up) at the first fix (" +
-                origin + ")",
+  a.gnss = {std::to_string(a.gnss_fixes.size()) + " fixes, stamps on the scans' clock, heights ellipsoidal; map frame: local " +
+                "ENU (x east, y north, z up) at the first fix (" + origin +
+                ") once the fixes span gnss.align_distance (yaw fitted; the first scan taken as level until the fixes " +
+                "correct roll and pitch)",
             a.gnss_path + (o.gnss_file.empty() ? ", found beside the scans" : ", --gnss")};
 }
 
