@@ -84,6 +84,9 @@ void add_map(CLI::App& app, Runner& run) {
   cmd->add_option("--times", opt->times_file,
                   "Folders: the scans' stamps, one line per scan (default: times.txt in the sequence folder, in the scans folder "
                   "or beside it)");
+  cmd->add_option("--gnss", opt->gnss_file,
+                  "GNSS fixes (stamp lat lon alt sigma_e sigma_n sigma_u per line; default: gnss.txt beside the scans): the map "
+                  "in local ENU, trajectory_utm.txt and trajectory_wgs84.txt");
   auto bin_fields = std::make_shared<std::string>("xyzi");
   cmd->add_option("--bin-fields", *bin_fields, "Layout of .bin scans: xyzi (KITTI) or xyz")->capture_default_str();
   cmd->add_option("--initial-trajectory", opt->initial_trajectory, "KITTI or TUM poses to use instead of the built-in odometry");
@@ -111,6 +114,7 @@ void add_map(CLI::App& app, Runner& run) {
       if (!ov->no_render)
         for (const auto& f : viz::write_run_pictures(opt->output, {}))
           std::fprintf(stderr, "Wrote %s: %s.\n", f.path.c_str(), f.what.c_str());
+      if (!r.gnss.empty()) std::fprintf(stderr, "%s\n", r.gnss.c_str());
       if (!r.failure.empty()) std::fprintf(stderr, "gcmap: %s\n", r.failure.c_str());
       return r.signal ? 128 + r.signal : r.failure.empty() ? 0 : 2;
     };

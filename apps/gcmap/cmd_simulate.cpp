@@ -1,5 +1,9 @@
+#include <cmath>
+#include <cstdlib>
 #include <iostream>
 #include <optional>
+#include <sstream>
+#include <vector>
 
 #include "commands.hpp"
 #include "gcmap/core/error.hpp"
@@ -35,6 +39,75 @@ struct ImuOptions {
       throw Error("--imu-rate: expected 10 to 10000 Hz, got " + std::to_string(config.rate));
     config.noise = !noise_free;
     return config;
+  }
+};
+
+// --gnss and the options that shape it.
+struct GnssOptions {
+  bool enabled = false;
+  sim::GnssSimConfig config;
+  std::string quality = "rtk", lever_arm, origin, outage;
+  std::vector<CLI::Option*> shaping;
+
+  void add(CLI::App* cmd) {
+    cmd->add_flag("--gnss", enabled,
+                  "Also GNSS fixes: gnss.txt (stamp lat lon alt sigma_e sigma_n sigma_u); the world (poses_world.txt) is "
+                  "local ENU at --gnss-origin, given in scenario.json with the receiver model");
+    shaping.push_back(cmd->add_option("--gnss-rate", config.rate, "Fixes per second")->capture_default_str());
+    shaping.push_back(cmd->add_option("--gnss-quality", quality,
+                                      "rtk (1.5 cm horizontal, 2.5 cm vertical, white), float (0.3 / 0.5 m, correlated over "
+                                      "10 s) or single (2 / 3 m, correlated over 30 s)")
+                          ->capture_default_str());
+    shaping.push_back(cmd->add_option("--gnss-outliers", config.outlier_fraction,
+                                      "Fraction of fixes with a multipath error (3-15 m horizontally, -2 to 8 m up)")
+                          ->capture_default_str());
+    shaping.push_back(cmd->add_option("--gnss-lever-arm", lever_arm, "X,Y,Z: the antenna in the LiDAR frame, m (default 0,0,0)"));
+    shaping.push_back(
+        cmd->add_option("--gnss-origin", origin, "LAT,LON,ALT of the world origin (default 48.137154,11.576124,520)"));
+    shaping.push_back(cmd->add_option("--gnss-outage", outage, "FROM,TO: no fixes between these seconds (a dropout stretch)"));
+  }
+  std::optional<sim::GnssSimConfig> resolve() {
+    for (CLI::Option* o : shaping)
+      if (!enabled && o->count()) throw Error(o->get_name() + " needs --gnss");
+    if (!enabled) return std::nullopt;
+    if (!(config.rate > 0.0 && config.rate <= 100.0))
+      throw Error("--gnss-rate: expected 0 to 100 Hz, got " + std::to_string(config.rate));
+    if (!(config.outlier_fraction >= 0.0 && config.outlier_fraction <= 0.5))
+      throw Error("--gnss-outliers: expected a fraction in [0, 0.5], got " + std::to_string(config.outlier_fraction));
+    config.quality = sim::parse_gnss_quality(quality, "--gnss-quality");
+    if (!lever_arm.empty()) config.lever_arm = triple("--gnss-lever-arm", lever_arm);
+    if (!origin.empty()) config.origin = parse_geodetic("--gnss-origin", origin);
+    if (!outage.empty()) {
+      const Eigen::Vector2d w = pair("--gnss-outage", outage);
+      if (!(w[1] > w[0])) throw Error("--gnss-outage: TO must be after FROM, got \"" + outage + "\"");
+      config.outage = std::make_pair(w[0], w[1]);
+    }
+    return config;
+  }
+
+ private:
+  static std::vector<double> numbers(const std::string& option, const std::string& text, size_t n) {
+    std::vector<double> v;
+    std::stringstream ss(text);
+    std::string item;
+    bool bad = false;
+    while (std::getline(ss, item, ',')) {
+      char* end = nullptr;
+      const double x = std::strtod(item.c_str(), &end);
+      bad |= item.empty() || *end != '\0' || !std::isfinite(x);
+      v.push_back(x);
+    }
+    if (bad || v.size() != n)
+      throw Error(option + ": expected " + std::to_string(n) + " comma-separated numbers, got \"" + text + "\"");
+    return v;
+  }
+  static Eigen::Vector3d triple(const std::string& option, const std::string& text) {
+    const std::vector<double> v = numbers(option, text, 3);
+    return {v[0], v[1], v[2]};
+  }
+  static Eigen::Vector2d pair(const std::string& option, const std::string& text) {
+    const std::vector<double> v = numbers(option, text, 2);
+    return {v[0], v[1]};
   }
 };
 
@@ -97,6 +170,8 @@ void add_simulate(CLI::App& app, Runner& run) {
                   "range_noise, dropouts, mixed_pixels, spurious, curbs, vegetation (default: the scenario's)");
   auto imu = std::make_shared<ImuOptions>();
   imu->add(cmd);
+  auto gnss = std::make_shared<GnssOptions>();
+  gnss->add(cmd);
   cmd->callback([=, &run] {
     run = [=] {
       if (*ideal && !realism->empty()) throw Error("--ideal and --realism: give one of them");
@@ -112,6 +187,7 @@ void add_simulate(CLI::App& app, Runner& run) {
       output.time = sim::parse_time_field(*time_field, "--time-field");
       output.compression = sim::parse_compression(*compression, output.bag, "--compression");
       output.imu = imu->resolve();
+      output.gnss = gnss->resolve();
       output.mistake = sim::parse_time_mistake(*mistake, "--time-mistake");
       Stopwatch w;
       const size_t points = sim::write_simulation(*out, *opt, output, false);

@@ -15,6 +15,7 @@
 #include "gcmap/cuda/cuda_backend.hpp"
 #include "gcmap/io/bag_scans.hpp"
 #include "gcmap/io/file.hpp"
+#include "gcmap/io/gnss_io.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/sequence.hpp"
 #include "gcmap/io/trajectory_io.hpp"
@@ -120,8 +121,54 @@ class SignalScope {
   struct sigaction old_term_ {};
 };
 
+// The fixes in the local ENU frame at the first fix.
+std::vector<GnssPosition> gnss_positions(const std::vector<GnssFix>& fixes) {
+  std::vector<GnssPosition> out;
+  for (const GnssFix& f : fixes) out.push_back({f.stamp, enu_from_geodetic(fixes.front().position, f.position), f.sigma_enu});
+  return out;
+}
+
+Json gnss_json(const GnssStats& s, const InputAssumptions& a, int epsg) {
+  Json j = Json::object();
+  j["file"] = a.gnss_path;
+  j["fixes"] = s.fixes;
+  j["used"] = s.used;
+  j["rejected"] = s.rejected;
+  j["downweighted"] = s.downweighted;
+  j["outside_scans"] = s.outside;
+  j["in_gaps"] = s.gaps;
+  j["waiting_for_alignment"] = s.waiting;
+  j["rms_residual_m"] = s.rms_residual;
+  j["georeferenced"] = s.georeferenced;
+  const Geodetic& o = a.gnss_fixes.front().position;
+  Json origin = Json::array();
+  for (double v : {o.lat_deg, o.lon_deg, o.alt_m}) origin.push_back(v);
+  j["enu_origin"] = origin;
+  j["map_frame"] = s.georeferenced ? "local ENU at enu_origin (x east, y north, z up)" : "first frame (not georeferenced)";
+  if (epsg) j["utm_epsg"] = epsg;
+  return j;
+}
+
+std::string gnss_line(const GnssStats& s, int epsg) {
+  char buf[320];
+  std::snprintf(
+      buf, sizeof buf,
+      "GNSS: %zu fixes: %zu used (%zu rejected beyond the outlier threshold, rms residual of the rest %.3f m), %zu "
+      "outside the scans, %zu in gaps; %s",
+      s.fixes, s.used, s.rejected, s.rms_residual, s.outside, s.gaps,
+      s.georeferenced
+          ? ("map in local ENU; trajectory_utm.txt (EPSG:" + std::to_string(epsg) + ") and trajectory_wgs84.txt written").c_str()
+          : "the fixes never spanned gnss.align_distance: NOT georeferenced");
+  return buf;
+}
+
+// The UTM zone of the first fix; 0 without GNSS.
+int gnss_epsg(const InputAssumptions& input) {
+  return input.gnss_fixes.empty() ? 0 : utm_epsg(input.gnss_fixes.front().position);
+}
+
 void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapRunOptions& o, int signal,
-                   const std::vector<std::string>& input_warnings, const Json& assumptions) {
+                   const std::vector<std::string>& input_warnings, const InputAssumptions& input) {
   // The quality report, the map's assembly and the session can take a while on a long drive: a
   // line as each begins.
   Progress writing("writing outputs, step", o.config.output.pcd ? 7 : 6, o.quiet);
@@ -145,6 +192,11 @@ void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapR
     write_trajectory((out / "trajectory.kitti").string(), traj);
     traj.format = TrajectoryFormat::tum;
     write_trajectory((out / "trajectory.tum").string(), traj);
+    if (pipeline.mapper().georeferenced()) {
+      const Geodetic& origin = input.gnss_fixes.front().position;
+      write_trajectory_utm((out / "trajectory_utm.txt").string(), origin, gnss_epsg(input), traj.stamps, traj.poses);
+      write_trajectory_wgs84((out / "trajectory_wgs84.txt").string(), origin, traj.stamps, traj.poses);
+    }
     Trajectory odom;
     odom.poses = pipeline.odometry();
     write_trajectory((out / "odometry.kitti").string(), odom);
@@ -164,7 +216,8 @@ void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapR
     Json warnings = Json::array();  // e.g. a truncated bag: mapped up to the damage
     for (const std::string& w : input_warnings) warnings.push_back(w);
     stats["input_warnings"] = warnings;
-    stats["assumptions"] = assumptions;
+    stats["assumptions"] = input.to_json();
+    if (!input.gnss_fixes.empty()) stats["gnss"] = gnss_json(pipeline.mapper().gnss_stats(), input, gnss_epsg(input));
     stats["host_memory"] = host_memory_json(pipeline);
     if (const auto* gpu = dynamic_cast<const cuda::CudaBackend*>(&pipeline.backend()))
       stats["device_memory"] = device_memory_json(*gpu, pipeline);
@@ -228,7 +281,8 @@ Input open_input(const MapRunOptions& o) {
                         .kitti_vertical_correction = pc.kitti_vertical_correction,
                         .deskew = pc.deskew,
                         .deskew_from_azimuth = pc.deskew_from_azimuth,
-                        .elevation_calibration = pc.elevation_calibration};
+                        .elevation_calibration = pc.elevation_calibration,
+                        .gnss_file = o.gnss_file};
   if (is_bag_path(o.input)) {
     if (o.start_time < 0 || o.duration < 0) throw Error("--start-time and --duration must be >= 0");
     if (!o.times_file.empty()) throw Error("--times applies to folders of scans, not to the bag " + o.input);
@@ -268,6 +322,7 @@ MapRunResult run_mapping(const MapRunOptions& o) {
   PipelineOptions po;
   po.kitti_hdl64 = input.kitti_hdl64;
   MappingPipeline pipeline(o.config, cuda::make_backend(o.device), po);
+  if (!input.assumptions.gnss_fixes.empty()) pipeline.set_gnss(gnss_positions(input.assumptions.gnss_fixes));
   Progress progress("frame", source.size_hint(), o.quiet);
   MappingPipeline::RunOptions ro;
   if (!o.initial_trajectory.empty())
@@ -290,7 +345,7 @@ MapRunResult run_mapping(const MapRunOptions& o) {
   if (!signal && unusable == frames)
     throw Error(o.input + ": none of its " + std::to_string(frames) +
                 " scans could be mapped (unreadable, empty or too few points: see the warnings above); nothing written");
-  write_outputs(pipeline, input.frame_offset, o, signal, source.warnings(), input.assumptions.to_json());
+  write_outputs(pipeline, input.frame_offset, o, signal, source.warnings(), input.assumptions);
 
   MapRunResult r;
   r.frames = pipeline.num_frames();
@@ -299,6 +354,7 @@ MapRunResult run_mapping(const MapRunOptions& o) {
   r.seconds = pipeline.stats().seconds;
   r.fps = r.seconds > 0 ? r.frames / r.seconds : 0.0;
   r.signal = signal;
+  if (!input.assumptions.gnss_fixes.empty()) r.gnss = gnss_line(pipeline.mapper().gnss_stats(), gnss_epsg(input.assumptions));
   if (!signal && 2 * unusable > frames)
     r.failure = o.input + ": " + std::to_string(unusable) + " of its " + std::to_string(frames) +
                 " scans could not be mapped (unreadable, empty or too few points: see the warnings above)";

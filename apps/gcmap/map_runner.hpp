@@ -15,6 +15,7 @@ struct MapRunOptions {
   int start = 0, max_frames = 0;
   std::string topic;                        // bags: the point-cloud topic (empty: the only one)
   std::string times_file;                   // folders: --times, the stamps file (empty: looked for beside the scans)
+  std::string gnss_file;                    // --gnss: GNSS fixes (empty: gnss.txt beside the scans, if any)
   BinFields bin_fields = BinFields::xyzi;   // folders: layout of .bin scans
   double start_time = 0.0, duration = 0.0;  // bags: s after the first message; duration 0: to the end
   Device device = Device::automatic;
@@ -26,6 +27,7 @@ struct MapRunResult {
   double seconds = 0.0, fps = 0.0;
   int signal = 0;       // SIGINT or SIGTERM when interrupted (outputs are then partial)
   std::string failure;  // why the run failed although it wrote its outputs (most scans unusable), else empty
+  std::string gnss;     // a line on the GNSS fixes used and rejected; empty without GNSS
 };
 
 // A sequence folder or a ROS bag.

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -222,6 +223,36 @@ void decide_bag(InputAssumptions& a, const InputOptions& o) {
   decide_kitti(a, o, nullptr);
 }
 
+// gnss.txt: --gnss, else beside the scans as times.txt is (bags: beside the bag).
+void decide_gnss(InputAssumptions& a, const InputOptions& o) {
+  std::vector<fs::path> candidates;
+  if (!o.gnss_file.empty()) {
+    if (!present(o.gnss_file)) throw Error(o.gnss_file + ": --gnss: no such file");
+    a.gnss_path = o.gnss_file;
+  } else if (a.layout == InputLayout::bag) {
+    candidates = {clean(a.input).parent_path() / "gnss.txt"};
+  } else {
+    candidates = {fs::path(a.root) / "gnss.txt", fs::path(a.scans_dir) / "gnss.txt",
+                  fs::path(a.scans_dir).parent_path() / "gnss.txt"};
+  }
+  for (const fs::path& p : candidates)
+    if (a.gnss_path.empty() && present(p)) a.gnss_path = clean(p).string();
+  if (a.gnss_path.empty()) {
+    a.gnss = {"none", "no gnss.txt beside the scans and no --gnss"};
+    return;
+  }
+  a.gnss_fixes = read_gnss_txt(a.gnss_path);
+  const GnssFix& first = a.gnss_fixes.front();
+  char origin[128];
+  std::snprintf(origin, sizeof(origin), "%.8f, %.8f, %.3f m", first.position.lat_deg, first.position.lon_deg,
+                first.position.alt_m);
+  a.gnss = {std::to_string(a.gnss_fixes.size()) + " fixes, stamps on the scans' clock, heights ellipsoidal; map frame: local " +
+                "ENU (x east, y north, z up) at the first fix (" + origin +
+                ") once the fixes span gnss.align_distance (yaw fitted; the first scan taken as level until the fixes " +
+                "correct roll and pitch)",
+            a.gnss_path + (o.gnss_file.empty() ? ", found beside the scans" : ", --gnss")};
+}
+
 }  // namespace
 
 InputAssumptions decide_input(const std::string& input, const InputOptions& options) {
@@ -230,6 +261,7 @@ InputAssumptions decide_input(const std::string& input, const InputOptions& opti
   if (is_bag_path(input)) decide_bag(a, options);
   else decide_folder(a, options);
   decide_deskew(a, options);
+  decide_gnss(a, options);
   return a;
 }
 
@@ -245,6 +277,7 @@ std::vector<std::string> InputAssumptions::lines() const {
   add("elevation correction", elevation_correction);
   add("beam calibration", beam_calibration);
   add("labels", labels);
+  add("gnss", gnss);
   for (const std::string& w : warnings) out.push_back("warning: " + w);
   return out;
 }
@@ -272,6 +305,8 @@ Json InputAssumptions::to_json() const {
   add("elevation_correction", elevation_correction);
   add("beam_calibration", beam_calibration);
   add("labels", labels);
+  add("gnss", gnss);
+  if (!gnss_path.empty()) j["gnss_file"] = gnss_path;
   Json w = Json::array();
   for (const std::string& s : warnings) w.push_back(s);
   j["warnings"] = w;

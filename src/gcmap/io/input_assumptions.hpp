@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 
+#include "gcmap/io/gnss_io.hpp"
 #include "gcmap/io/json.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 
@@ -25,6 +26,7 @@ struct InputOptions {
   bool deskew = true;                     // preprocess.deskew
   bool deskew_from_azimuth = false;       // preprocess.deskew_from_azimuth
   std::string elevation_calibration;      // preprocess.elevation_calibration
+  std::string gnss_file;                  // --gnss: the fixes file, instead of gnss.txt beside the scans
 };
 
 // One assumption: what is assumed and why, in words.
@@ -46,7 +48,9 @@ struct InputAssumptions {
   double assumed_rate_hz = 10.0;
   bool point_times = false;  // the scans carry per-point times
   bool kitti_correction = false;
-  Assumed layout_text, stamps_text, point_times_text, deskew, elevation_correction, beam_calibration, labels;
+  std::string gnss_path;            // gnss.txt or --gnss; empty: no GNSS
+  std::vector<GnssFix> gnss_fixes;  // as read (io/gnss_io.hpp)
+  Assumed layout_text, stamps_text, point_times_text, deskew, elevation_correction, beam_calibration, labels, gnss;
   std::vector<std::string> warnings;  // stated in the first lines and in stats.json
 
   // "assumption: value (evidence)" lines for the start of a run.
@@ -60,7 +64,9 @@ struct InputAssumptions {
 // folder; none: options' rate is assumed, with a warning. Throws Error naming the file for a times
 // file whose count does not match the scans, a line that is not a number, or a stamp before the
 // previous one. KITTI's 0.22 deg elevation correction only with all of KITTI's evidence (see
-// kitti_evidence in the .cpp). Reads the first scan (sensor evidence, per-point times).
+// kitti_evidence in the .cpp). Reads the first scan (sensor evidence, per-point times). GNSS:
+// options.gnss_file, else gnss.txt where times.txt is looked for (bags: beside the bag); read
+// whole (Error("PATH:LINE: ...") for a bad line).
 InputAssumptions decide_input(const std::string& input, const InputOptions& options);
 
 }  // namespace gcmap

@@ -262,6 +262,32 @@ void visit_loop(Config& c, Visitor& v) {
 }
 
 template <typename Config, typename Visitor>
+void visit_gnss(Config& c, Visitor& v) {
+  v("gnss", "lever_arm_x", c.gnss.lever_arm_x,
+    KeyDoc{"m", -100, 100, "mapping/", "The GNSS antenna in the LiDAR (sensor) frame: x."});
+  v("gnss", "lever_arm_y", c.gnss.lever_arm_y,
+    KeyDoc{"m", -100, 100, "mapping/", "The GNSS antenna in the LiDAR (sensor) frame: y."});
+  v("gnss", "lever_arm_z", c.gnss.lever_arm_z,
+    KeyDoc{"m", -100, 100, "mapping/", "The GNSS antenna in the LiDAR (sensor) frame: z."});
+  v("gnss", "huber_width", c.gnss.huber_width,
+    KeyDoc{"-", 0.1, 1000, "mapping/",
+           "Huber kernel of the GNSS position factors, in sigmas of the fix: beyond it a fix pulls with a constant force, so "
+           "a multipath outlier of metres moves the map little."});
+  v("gnss", "align_distance", c.gnss.align_distance,
+    KeyDoc{"m", 1, 100000, "mapping/",
+           "The fixes must span this far horizontally (and ten times their horizontal sigma), and spread across their main "
+           "direction by a sixth of this distance (RMS, and three sigmas: a rotation about a straight track is invisible to "
+           "positions), before the map is "
+           "turned and moved onto them (yaw and translation); until then the first submap holds the gauge."});
+  v("gnss", "max_gap", c.gnss.max_gap,
+    KeyDoc{"s", 0.01, 60, "mapping/",
+           "A fix is placed between the two scans around its stamp; where they are further apart than this it is skipped."});
+  v("gnss", "outlier_threshold", c.gnss.outlier_threshold,
+    KeyDoc{"-", 1, 1e6, "mapping/",
+           "A fix whose residual at the final estimate exceeds this many of its sigmas is counted as rejected (stats.json)."});
+}
+
+template <typename Config, typename Visitor>
 void visit_localize_merge_output(Config& c, Visitor& v) {
   v("localize", "min_overlap", c.localize.min_overlap,
     KeyDoc{"-", 0.01, 1, "session/",
@@ -301,6 +327,7 @@ void visit_localize_merge_output(Config& c, Visitor& v) {
            "the two submaps meets its neighbour in its own session: no absolute bound suits both clean and noisy sessions."});
   v("merge", "max_iterations", c.merge.max_iterations,
     KeyDoc{"-", 1, 1000, "session/", "Levenberg-Marquardt iterations of the joint optimization of all sessions, at most."});
+  visit_gnss(c, v);
   v("output", "map_resolution", c.output.map_resolution,
     KeyDoc{"m", 0.01, 100, "apps/gcmap/", "Voxel size of the written map (map.ply, map.pcd)."});
   v("output", "pcd", c.output.pcd, KeyDoc{"-", 0, 0, "apps/gcmap/", "Also write the map as map.pcd, beside map.ply."});

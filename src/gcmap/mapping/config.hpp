@@ -114,6 +114,16 @@ struct QualityConfig {
   double stamp_gap_factor = 1.5;   // a stamp interval over this times the median one is an anomaly
 };
 
+// GNSS fixes as position factors of the global graph (`gcmap map --gnss`, gnss.txt).
+struct GnssConfig {
+  // m: the antenna in the LiDAR (sensor) frame.
+  double lever_arm_x = 0.0, lever_arm_y = 0.0, lever_arm_z = 0.0;
+  double huber_width = 3.0;        // sigmas: beyond, a fix's pull stays constant (multipath)
+  double align_distance = 30.0;    // m the fixes must span before the map is turned onto them
+  double max_gap = 0.5;            // s: a fix between scans further apart than this is skipped
+  double outlier_threshold = 5.0;  // sigmas: a fix further from the final estimate counts as rejected
+};
+
 struct OutputConfig {
   double map_resolution = 0.1;
   bool pcd = false;
@@ -133,6 +143,7 @@ struct MappingConfig {
   LoopConfig loop;
   LocalizationConfig localize;
   MergeConfig merge;
+  GnssConfig gnss;
   OutputConfig output;
   QualityConfig quality;
 

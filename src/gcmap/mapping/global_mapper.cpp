@@ -2,6 +2,10 @@
 
 #include <tbb/parallel_for.h>
 
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+
+#include "gcmap/core/error.hpp"
 #include "gcmap/loop/loop_closure.hpp"
 #include "gcmap/registration/gicp.hpp"
 #include "gcmap/registration/registration.hpp"
@@ -29,6 +33,53 @@ LMConfig lm_config(const GlobalMappingConfig& global, int iterations, double rel
 }
 }  // namespace
 
+namespace {
+// Weighted yaw and translation (the 2-D Procrustes solution, z by the weighted mean) over `in`.
+Eigen::Isometry3d yaw_translation(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b,
+                                  const std::vector<double>& w, const std::vector<char>& in) {
+  Eigen::Vector3d ca = Eigen::Vector3d::Zero(), cb = Eigen::Vector3d::Zero();
+  double sum = 0.0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (!in[i]) continue;
+    ca += w[i] * a[i];
+    cb += w[i] * b[i];
+    sum += w[i];
+  }
+  ca /= sum;
+  cb /= sum;
+  double dot = 0.0, cross = 0.0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (!in[i]) continue;
+    const Eigen::Vector3d p = a[i] - ca, q = b[i] - cb;
+    dot += w[i] * (p.x() * q.x() + p.y() * q.y());
+    cross += w[i] * (p.x() * q.y() - p.y() * q.x());
+  }
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(std::atan2(cross, dot), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T.translation() = cb - T.linear() * ca;
+  return T;
+}
+}  // namespace
+
+Eigen::Isometry3d fit_yaw_translation(const std::vector<Eigen::Vector3d>& world, const std::vector<Eigen::Vector3d>& enu,
+                                      const std::vector<double>& weights, std::vector<char>* inliers) {
+  if (world.size() != enu.size() || world.size() != weights.size() || world.size() < 2)
+    throw Error("fit_yaw_translation: needs at least 2 pairs of points with a weight each");
+  std::vector<char> in(world.size(), 1);
+  Eigen::Isometry3d T = yaw_translation(world, enu, weights, in);
+  for (int pass = 0; pass < 2; ++pass) {
+    std::vector<double> r(world.size());
+    for (size_t i = 0; i < world.size(); ++i) r[i] = (T * world[i] - enu[i]).norm();
+    std::vector<double> sorted = r;
+    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+    const double bound = std::max(4.0 * sorted[sorted.size() / 2], 0.5);
+    for (size_t i = 0; i < world.size(); ++i) in[i] = r[i] <= bound;
+    T = yaw_translation(world, enu, weights, in);
+  }
+  if (inliers) *inliers = in;
+  return T;
+}
+
 Matrix6d odometry_factor_information() {
   Matrix6d info = Matrix6d::Identity();
   info.diagonal() << 1e4, 1e4, 1e4, 1e3, 1e3, 1e3;
@@ -36,9 +87,10 @@ Matrix6d odometry_factor_information() {
 }
 
 GlobalMapper::GlobalMapper(const GlobalMappingConfig& config, const LoopConfig& loop,
-                           std::shared_ptr<LinearizationBackend> backend)
+                           std::shared_ptr<LinearizationBackend> backend, const GnssConfig& gnss)
     : config_(config),
       loop_(loop),
+      gnss_(gnss),
       backend_(std::move(backend)),
       lazy_(config.relinearize == Relinearize::moved ? std::make_shared<LazyBackend>(backend_, config.relinearize_threshold)
                                                      : nullptr),
@@ -66,10 +118,66 @@ void GlobalMapper::add_factor(GlobalFactor f) {
 FactorGraph GlobalMapper::graph() const {
   FactorGraph g;
   for (const GlobalFactor& f : factors_) g.add(f.factor);
+  for (const auto& f : gnss_factors_) g.add(f);
   return g;
 }
 
-void GlobalMapper::insert(Submap s, LoopDetector* loops) {
+void GlobalMapper::add_gnss_factor(const GnssMeasurement& m) {
+  gnss_factors_.push_back(std::make_shared<GnssPositionFactor>(m.submap, m.p_submap_antenna, m.p_enu, m.sigma,
+                                                               RobustKernel::huber(gnss_.huber_width)));
+  gnss_used_.push_back(m);
+}
+
+void GlobalMapper::take_gnss(std::vector<GnssMeasurement> gnss) {
+  if (georeferenced_) {
+    for (const GnssMeasurement& m : gnss) add_gnss_factor(m);
+    return;
+  }
+  gnss_pending_.insert(gnss_pending_.end(), gnss.begin(), gnss.end());
+  if (!try_georeference()) return;
+  for (const GnssMeasurement& m : gnss_pending_) add_gnss_factor(m);
+  gnss_pending_.clear();
+}
+
+namespace {
+// RMS distance of the points from their horizontal principal line: while the fixes lie along one
+// line, a rotation of the map about it changes none of them, and a graph without a held pose would
+// turn freely about it.
+double lateral_spread(const std::vector<Eigen::Vector3d>& p) {
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (const Eigen::Vector3d& x : p) mean += x.head<2>() / double(p.size());
+  Eigen::Matrix2d C = Eigen::Matrix2d::Zero();
+  for (const Eigen::Vector3d& x : p) C += (x.head<2>() - mean) * (x.head<2>() - mean).transpose() / double(p.size());
+  return std::sqrt(std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(C).eigenvalues()(0)));
+}
+}  // namespace
+
+// The world so far is the first submap's frame, level as far as the sensor was at the start; a fit
+// of yaw and translation turns it onto the fixes (roll and pitch are left to the factors). It waits
+// until the fixes also spread across their main direction (align_distance / 6 RMS), so that the factors
+// see every rotation once no pose is held.
+bool GlobalMapper::try_georeference() {
+  if (gnss_pending_.size() < 3) return false;
+  std::vector<Eigen::Vector3d> world, enu;
+  std::vector<double> weights;
+  double extent = 0.0, sigma = 0.0;
+  for (const GnssMeasurement& m : gnss_pending_) {
+    world.push_back(values_.at(m.submap) * m.p_submap_antenna);
+    enu.push_back(m.p_enu);
+    weights.push_back(1.0 / m.sigma.head<2>().squaredNorm());
+    extent = std::max(extent, (m.p_enu - gnss_pending_.front().p_enu).head<2>().norm());
+    sigma += m.sigma.head<2>().norm() / gnss_pending_.size();
+  }
+  if (extent < std::max(gnss_.align_distance, 10.0 * sigma) ||
+      lateral_spread(enu) < std::max(gnss_.align_distance / 6.0, 3.0 * sigma))
+    return false;
+  const Eigen::Isometry3d T_enu_world = fit_yaw_translation(world, enu, weights);
+  for (auto& [key, T] : values_) T = normalized(T_enu_world * T);
+  georeferenced_ = true;
+  return true;
+}
+
+void GlobalMapper::insert(Submap s, LoopDetector* loops, std::vector<GnssMeasurement> gnss) {
   const int id = s.id;
   if (id == 0) {
     values_[0] = Eigen::Isometry3d::Identity();
@@ -79,6 +187,7 @@ void GlobalMapper::insert(Submap s, LoopDetector* loops) {
   }
   submaps_.push_back(std::move(s));
   const Submap& cur = submaps_.back();
+  take_gnss(std::move(gnss));
   if (id == 0) {
     stats_.per_submap.push_back({1, 0, 0.0, 0});
     return;
@@ -124,7 +233,7 @@ void GlobalMapper::insert(Submap s, LoopDetector* loops) {
 }
 
 void GlobalMapper::optimize(const FactorGraph& graph, GlobalMappingStats::PerSubmap& into) {
-  const LMResult r = lm_.optimize(graph, values_, {0});
+  const LMResult r = lm_.optimize(graph, values_, fixed());
   into.global_iterations += r.iterations;
   into.linearize_ms += r.linearize_ms;
   into.assemble_ms += r.assemble_ms;
@@ -142,6 +251,7 @@ FactorGraph GlobalMapper::without_revisit_factors() const {
     steer.add(f.factor);
     constrained[f.source] = constrained[f.target] = 1;
   }
+  for (const auto& f : gnss_factors_) steer.add(f);
   // A submap held only by revisit factors keeps them (LM needs every pose constrained).
   for (const GlobalFactor& f : factors_)
     if (revisit(f) && (!constrained[f.source] || !constrained[f.target])) steer.add(f.factor);
@@ -181,12 +291,12 @@ int GlobalMapper::connect_overlapping(int id, int first) {
 
 void GlobalMapper::optimize_final(std::optional<int> max_iterations, const IterationCallback& on_iteration) {
   const int iterations = max_iterations ? std::min(*max_iterations, config_.final_iterations) : config_.final_iterations;
-  if (factors_.empty() || iterations <= 0) return;
+  if ((factors_.empty() && gnss_factors_.empty()) || iterations <= 0) return;
   LevenbergMarquardt final_lm(lm_config(config_, iterations), lm_backend());
   final_lm.on_iteration(on_iteration);
   if (lazy_) lazy_->set_max_relinearizations(0);  // what insertions deferred is caught up here
   Stopwatch w;
-  stats_.final_iterations = final_lm.optimize(graph(), values_, {0}).iterations;
+  stats_.final_iterations = final_lm.optimize(graph(), values_, fixed()).iterations;
   stats_.final_optimization_ms = w.ms();
   stats_.optimization.add(stats_.final_optimization_ms);
   if (lazy_) lazy_->set_max_relinearizations(static_cast<size_t>(config_.max_relinearizations));

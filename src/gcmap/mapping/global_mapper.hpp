@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "gcmap/core/timer.hpp"
+#include "gcmap/graph/gnss_factor.hpp"
 #include "gcmap/graph/lazy_backend.hpp"
 #include "gcmap/graph/levenberg_marquardt.hpp"
 #include "gcmap/mapping/config.hpp"
@@ -33,6 +34,20 @@ struct FactorEvaluation {
   double weight = 1.0;  // robust-kernel weight (relative-pose factors)
 };
 
+// A GNSS fix placed on a submap: the antenna in the submap frame at the fix's stamp, and where the
+// fix puts it in the local ENU frame.
+struct GnssMeasurement {
+  int submap = 0;
+  size_t fix = 0;  // index in the input's fixes
+  Eigen::Vector3d p_submap_antenna = Eigen::Vector3d::Zero(), p_enu = Eigen::Vector3d::Zero(), sigma = Eigen::Vector3d::Ones();
+};
+
+// The rigid transform turning `world` points onto `enu` points about the vertical only (yaw and a
+// 3-D translation), weighted, with two passes that leave out points beyond
+// max(4 x the median residual, 0.5 m). inliers (optional): per point, whether the last pass kept it.
+Eigen::Isometry3d fit_yaw_translation(const std::vector<Eigen::Vector3d>& world, const std::vector<Eigen::Vector3d>& enu,
+                                      const std::vector<double>& weights, std::vector<char>* inliers = nullptr);
+
 struct GlobalMappingStats {
   TimingStats factors, optimization;
   struct PerSubmap {
@@ -55,11 +70,15 @@ struct GlobalMappingStats {
 class GlobalMapper {
  public:
   // Of loop: whether explicit loops are on, exclude_recent and the loop constraint.
-  GlobalMapper(const GlobalMappingConfig& config, const LoopConfig& loop, std::shared_ptr<LinearizationBackend> backend);
+  GlobalMapper(const GlobalMappingConfig& config, const LoopConfig& loop, std::shared_ptr<LinearizationBackend> backend,
+               const GnssConfig& gnss = {});
 
   // Inserts the next submap (ids in order), connects and optimizes it; `loops` (may be null) is
   // asked for an explicit loop in full mode.
-  void insert(Submap submap, LoopDetector* loops);
+  // gnss: the fixes placed on this submap. Until the fixes span gnss.align_distance they wait and
+  // submap 0 is held fixed; then every pose is moved onto them by fit_yaw_translation (the world
+  // becomes the local ENU frame), they become GnssPositionFactors, and no pose is held any more.
+  void insert(Submap submap, LoopDetector* loops, std::vector<GnssMeasurement> gnss = {});
   // The final optimization, to a 1e-6 relative tolerance, of at most global.final_iterations
   // (or max_iterations when given; 0 skips it); on_iteration after each of its iterations.
   void optimize_final(std::optional<int> max_iterations = std::nullopt, const IterationCallback& on_iteration = {});
@@ -70,9 +89,18 @@ class GlobalMapper {
   // Error and weight of every factor at the current poses (in factors() order).
   std::vector<FactorEvaluation> evaluate_factors() const;
   const GlobalMappingStats& stats() const { return stats_; }
+  // The poses are in the local ENU frame of the fixes.
+  bool georeferenced() const { return georeferenced_; }
+  const std::vector<std::shared_ptr<GnssPositionFactor>>& gnss_factors() const { return gnss_factors_; }
+  const std::vector<GnssMeasurement>& gnss_measurements() const { return gnss_used_; }  // in gnss_factors() order
+  size_t gnss_waiting() const { return gnss_pending_.size(); }
 
  private:
   void add_factor(GlobalFactor f);
+  void take_gnss(std::vector<GnssMeasurement> gnss);
+  bool try_georeference();
+  void add_gnss_factor(const GnssMeasurement& m);
+  std::set<int> fixed() const { return georeferenced_ ? std::set<int>{} : std::set<int>{0}; }
   FactorGraph graph() const;
   std::shared_ptr<LinearizationBackend> lm_backend() const;
   void count_linearizations();
@@ -87,6 +115,10 @@ class GlobalMapper {
 
   GlobalMappingConfig config_;
   LoopConfig loop_;
+  GnssConfig gnss_;
+  bool georeferenced_ = false;
+  std::vector<GnssMeasurement> gnss_pending_, gnss_used_;
+  std::vector<std::shared_ptr<GnssPositionFactor>> gnss_factors_;
   std::shared_ptr<LinearizationBackend> backend_;
   std::shared_ptr<LazyBackend> lazy_;  // between LM and backend_ when global.relinearize is moved
   std::vector<Submap> submaps_;

@@ -25,12 +25,15 @@ Mapper::Mapper(const MappingConfig& config, std::shared_ptr<LinearizationBackend
       backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
       local_(config_.local, config_.global, config_.loop, backend_),
       loops_(config_.loop),
-      global_(config_.global, config_.loop, backend_) {}
+      global_(config_.global, config_.loop, backend_, config_.gnss) {}
 
 FrameStatus Mapper::add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom,
-                              std::optional<KeyframeShape> shape) {
+                              std::optional<KeyframeShape> shape, double stamp) {
   if (frame != static_cast<int>(frames_.size())) throw Error("Mapper: frames must be numbered consecutively from 0");
+  if (!fixes_.empty() && !stamps_.empty() && stamp < stamps_.back())
+    throw Error("Mapper: frame " + std::to_string(frame) + "'s stamp is before the previous frame's");
   frames_.push_back({-1, T_odom});
+  stamps_.push_back(stamp);
   SubmapBuilder::Result r = local_.add_frame(frame, cloud, T_odom, std::move(shape));
   frames_.back().anchor = r.anchor;
   if (r.closed) insert(std::move(*r.closed));
@@ -50,7 +53,79 @@ void Mapper::insert(Submap submap) {
     frames_[submap.keyframes[k]].index = static_cast<int>(k);
   }
   loops_.add_submap(submap);
-  global_.insert(std::move(submap), &loops_);
+  std::vector<GnssMeasurement> fixes = place_fixes(submap);
+  global_.insert(std::move(submap), &loops_, std::move(fixes));
+}
+
+void Mapper::set_gnss(std::vector<GnssPosition> fixes) {
+  if (!frames_.empty()) throw Error("Mapper: set_gnss before the first frame");
+  for (size_t k = 1; k < fixes.size(); ++k)
+    if (!(fixes[k].stamp > fixes[k - 1].stamp)) throw Error("Mapper: GNSS stamps must increase");
+  fixes_ = std::move(fixes);
+}
+
+std::optional<std::pair<int, Eigen::Isometry3d>> Mapper::in_submap(int f, const Submap& inserting) const {
+  const int anchor = frames_[f].anchor;
+  if (anchor < 0 || frames_[anchor].submap < 0) return std::nullopt;
+  const FrameRecord& a = frames_[anchor];
+  const Submap& s = a.submap == inserting.id ? inserting : submaps()[a.submap];
+  return std::make_pair(a.submap, s.T_submap_keyframe[a.index] * a.T_odom.inverse() * frames_[f].T_odom);
+}
+
+namespace {
+// The pose a fraction `alpha` of the way along `T` (slerp, straight translation).
+Eigen::Isometry3d partway(const Eigen::Isometry3d& T, double alpha) {
+  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+  out.linear() = Eigen::Quaterniond::Identity().slerp(alpha, Eigen::Quaterniond(T.linear())).toRotationMatrix();
+  out.translation() = alpha * T.translation();
+  return out;
+}
+}  // namespace
+
+std::vector<GnssMeasurement> Mapper::place_fixes(const Submap& inserting) {
+  std::vector<GnssMeasurement> out;
+  const Eigen::Vector3d lever(config_.gnss.lever_arm_x, config_.gnss.lever_arm_y, config_.gnss.lever_arm_z);
+  for (; next_fix_ < fixes_.size(); ++next_fix_) {
+    const GnssPosition& fix = fixes_[next_fix_];
+    // f0: the last frame at or before the fix, f1 the one after it (the fix needs both, unless on f0).
+    const int f0 = static_cast<int>(std::upper_bound(stamps_.begin(), stamps_.end(), fix.stamp) - stamps_.begin()) - 1;
+    if (f0 < 0) {
+      ++fixes_outside_;
+      continue;
+    }
+    const bool on_f0 = stamps_[f0] == fix.stamp, have_f1 = f0 + 1 < static_cast<int>(stamps_.size());
+    const auto placed = in_submap(f0, inserting);
+    if (!placed || (!on_f0 && !have_f1)) break;  // later: its frames are not all mapped yet
+    if (!on_f0 && stamps_[f0 + 1] - stamps_[f0] > config_.gnss.max_gap) {
+      ++fixes_gaps_;
+      continue;
+    }
+    const double alpha = on_f0 ? 0.0 : (fix.stamp - stamps_[f0]) / (stamps_[f0 + 1] - stamps_[f0]);
+    const Eigen::Isometry3d T_f0_fix =
+        on_f0 ? Eigen::Isometry3d::Identity() : partway(frames_[f0].T_odom.inverse() * frames_[f0 + 1].T_odom, alpha);
+    out.push_back({placed->first, next_fix_, placed->second * T_f0_fix * lever, fix.p_enu, fix.sigma});
+  }
+  return out;
+}
+
+GnssStats Mapper::gnss_stats() const {
+  GnssStats s;
+  s.fixes = fixes_.size();
+  s.outside = fixes_outside_ + (fixes_.size() - next_fix_);
+  s.gaps = fixes_gaps_;
+  s.waiting = global_.gnss_waiting();
+  s.georeferenced = global_.georeferenced();
+  const auto& factors = global_.gnss_factors();
+  s.used = factors.size();
+  double sum = 0.0;
+  for (const auto& f : factors) {
+    const Eigen::Isometry3d& T = global_.pose(f->keys()[0]);
+    if (f->whitened_norm(T) > config_.gnss.outlier_threshold) ++s.rejected;
+    else sum += f->residual(T).squaredNorm();
+    s.downweighted += f->weight() < 1.0;
+  }
+  if (s.used > s.rejected) s.rms_residual = std::sqrt(sum / double(s.used - s.rejected));
+  return s;
 }
 
 void Mapper::finish(std::optional<int> max_final_iterations, const IterationCallback& on_iteration) {
@@ -74,6 +149,8 @@ Eigen::Isometry3d Mapper::world_pose(int f) const {
 }
 
 Eigen::Isometry3d Mapper::output_from_world() const {
+  // Georeferenced: the world is the local ENU frame, and so is the output.
+  if (global_.georeferenced()) return Eigen::Isometry3d::Identity();
   return frames_.empty() ? Eigen::Isometry3d::Identity() : world_pose(0).inverse();
 }
 
@@ -210,8 +287,9 @@ PointCloud assemble_map(const std::vector<Submap>& submaps, const std::vector<Ei
 
 PointCloud Mapper::assemble_map(double resolution, size_t block_points) const {
   // Points (and intensities) in the output frame (first frame identity, like the trajectory).
-  const Eigen::Isometry3d T_out_world =
-      !frames_.empty() && frames_[0].submap >= 0 ? keyframe_world(0).inverse() : Eigen::Isometry3d::Identity();
+  const Eigen::Isometry3d T_out_world = !global_.georeferenced() && !frames_.empty() && frames_[0].submap >= 0
+                                            ? keyframe_world(0).inverse()
+                                            : Eigen::Isometry3d::Identity();
   std::vector<Eigen::Isometry3d> placements;
   for (const Submap& s : submaps()) placements.push_back(T_out_world * global_.pose(s.id));
   return gcmap::assemble_map(submaps(), placements, resolution, block_points);

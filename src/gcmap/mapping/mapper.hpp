@@ -2,6 +2,8 @@
 // The back end of the paper (Section III): local mapping, global mapping and explicit loops,
 // composed; frames in, submaps and their optimized poses out.
 #include <memory>
+#include <optional>
+#include <utility>
 #include <vector>
 
 #include "gcmap/mapping/global_mapper.hpp"
@@ -18,6 +20,25 @@ bool have_intensities(const std::vector<Submap>& submaps);
 PointCloud assemble_map(const std::vector<Submap>& submaps, const std::vector<Eigen::Isometry3d>& T_out_submap, double resolution,
                         size_t block_points = size_t{1} << 22);
 
+// A GNSS fix in the local ENU frame of the run (io/gnss_io converts gnss.txt).
+struct GnssPosition {
+  double stamp = 0.0;
+  Eigen::Vector3d p_enu = Eigen::Vector3d::Zero(), sigma = Eigen::Vector3d::Ones();
+};
+
+// What became of the fixes (at the current estimate).
+struct GnssStats {
+  size_t fixes = 0;
+  size_t used = 0;            // a factor each
+  size_t outside = 0;         // before the first scan or after the last
+  size_t gaps = 0;            // between scans further apart than gnss.max_gap
+  size_t waiting = 0;         // placed, but the fixes never spanned gnss.align_distance: no factor
+  size_t rejected = 0;        // of used: residual beyond gnss.outlier_threshold sigmas
+  size_t downweighted = 0;    // of used: beyond gnss.huber_width sigmas at the last linearization
+  double rms_residual = 0.0;  // m, of the used fixes not rejected, horizontal and vertical together
+  bool georeferenced = false;
+};
+
 struct MapperStats {
   LocalMappingStats local;
   GlobalMappingStats global;
@@ -32,8 +53,14 @@ class Mapper {
   // Feeds a preprocessed frame (with covariances) and its odometry pose. Frames come in order,
   // numbered from 0; unusable frames (nullptr or too few points) are placed by odometry only.
   // shape: the cloud's keyframe_shape when made ahead.
+  // stamp: s, needed only where GNSS fixes are to be placed.
   FrameStatus add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom,
-                        std::optional<KeyframeShape> shape = std::nullopt);
+                        std::optional<KeyframeShape> shape = std::nullopt, double stamp = 0.0);
+  // GNSS fixes (stamps increasing) to place on the submaps as they close: each at the pose
+  // interpolated between the frames around its stamp, the antenna at gnss.lever_arm_*.
+  void set_gnss(std::vector<GnssPosition> fixes);
+  bool georeferenced() const { return global_.georeferenced(); }
+  GnssStats gnss_stats() const;
   // A frame's sweep deskewed again (SweepRevision), before the next frame is added: its odometry
   // pose, and its cloud when it is a keyframe. True when the cloud was taken; a frame whose submap
   // has closed keeps its place.
@@ -67,6 +94,11 @@ class Mapper {
     int submap = -1, index = -1;  // for keyframes of closed submaps: where the keyframe is
   };
   void insert(Submap submap);
+  // The fixes from next_fix_ that can be placed now (their frames are in closed submaps, or in
+  // `inserting`, which the global mapper does not hold yet).
+  std::vector<GnssMeasurement> place_fixes(const Submap& inserting);
+  // A frame's pose in its anchor's submap; nullopt while that submap is open.
+  std::optional<std::pair<int, Eigen::Isometry3d>> in_submap(int frame, const Submap& inserting) const;
   Eigen::Isometry3d keyframe_world(int keyframe) const;
   Eigen::Isometry3d world_pose(int frame) const;
 
@@ -76,6 +108,9 @@ class Mapper {
   LoopDetector loops_;
   GlobalMapper global_;
   std::vector<FrameRecord> frames_;
+  std::vector<double> stamps_;
+  std::vector<GnssPosition> fixes_;
+  size_t next_fix_ = 0, fixes_outside_ = 0, fixes_gaps_ = 0;
 };
 
 }  // namespace gcmap

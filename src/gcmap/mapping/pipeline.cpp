@@ -161,7 +161,7 @@ MappingPipeline::Tracked MappingPipeline::track_frame(PreparedScan scan, std::op
 Frame MappingPipeline::map_frame(Tracked t) {
   Frame& f = t.frame;
   if (t.revised) mapper_.revise_frame(t.revised->frame, t.revised->cloud, t.revised->T_world_frame);
-  f.status = mapper_.add_frame(f.index, t.cloud, f.T_odom, std::move(t.keyframe));
+  f.status = mapper_.add_frame(f.index, t.cloud, f.T_odom, std::move(t.keyframe), f.stamp);
   if (f.status == FrameStatus::unusable && t.cloud) ++unusable_frames_;
   statuses_.push_back(f.status);
   f.T_world_frame = mapper_.frame_pose(f.index);

@@ -88,6 +88,8 @@ class MappingPipeline {
   // called after each iteration of the final optimization.
   void finish(std::optional<int> max_final_iterations = std::nullopt, const IterationCallback& on_iteration = {});
   bool finished() const { return finished_; }
+  // GNSS fixes for the global graph (Mapper::set_gnss), before the first scan.
+  void set_gnss(std::vector<GnssPosition> fixes) { mapper_.set_gnss(std::move(fixes)); }
 
   struct RunOptions {
     std::function<std::optional<Eigen::Isometry3d>(int frame)> initial_pose;  // external odometry

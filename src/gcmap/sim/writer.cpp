@@ -184,8 +184,38 @@ Json imu_json(const ImuSimConfig& c, const OutputOptions& out) {
   return j;
 }
 
+Json gnss_json(const GnssSimConfig& c, const SimulatedGnss& g) {
+  const GnssNoise n = gnss_noise(c.quality);
+  Json j = Json::object();
+  j["file"] = "gnss.txt: stamp lat lon alt (deg, deg, m ellipsoidal) sigma_east sigma_north sigma_up (m)";
+  j["rate_hz"] = c.rate;
+  j["quality"] = to_string(c.quality);
+  j["sigma_horizontal_m"] = n.sigma_horizontal;
+  j["sigma_vertical_m"] = n.sigma_vertical;
+  j["error_correlation_s"] = n.correlation_s;
+  j["error_model"] = "per axis first-order Gauss-Markov of the sigmas (white where the correlation is 0)";
+  j["outlier_fraction"] = c.outlier_fraction;
+  j["outliers"] = g.outliers;
+  j["outlier_model"] = "multipath: 3-15 m horizontally in a uniform direction, -2 to 8 m up; sigmas as for the others";
+  Json lever = Json::array();
+  for (int a = 0; a < 3; ++a) lever.push_back(c.lever_arm[a]);
+  j["lever_arm"] = lever;
+  j["lever_arm_frame"] = "the antenna in the LiDAR frame, m";
+  j["fixes"] = g.fixes.size();
+  j["blocked"] = g.blocked;
+  j["blocked_rule"] = "no fix while a structure (not a canopy) is within 200 m straight above the antenna";
+  if (c.outage) {
+    Json o = Json::array();
+    o.push_back(c.outage->first);
+    o.push_back(c.outage->second);
+    j["outage_s"] = o;
+    j["in_outage"] = g.in_outage;
+  }
+  return j;
+}
+
 void write_metadata(const fs::path& dir, const Simulator& sim, const SimulationConfig& config, const OutputOptions& out,
-                    size_t total) {
+                    size_t total, const SimulatedGnss* gnss) {
   Trajectory gt;
   gt.format = TrajectoryFormat::kitti;
   const Eigen::Isometry3d T0_inv = sim.poses().front().inverse();
@@ -243,6 +273,15 @@ void write_metadata(const fs::path& dir, const Simulator& sim, const SimulationC
     if (livox) j["reflectivity"] = "uint8, the simulated intensity in [0, 1] x 255, rounded";
   }
   if (out.imu) j["imu"] = imu_json(*out.imu, out);
+  if (out.gnss && gnss) {
+    Json origin = Json::object();
+    origin["lat_deg"] = out.gnss->origin.lat_deg;
+    origin["lon_deg"] = out.gnss->origin.lon_deg;
+    origin["alt_m"] = out.gnss->origin.alt_m;
+    j["geodetic_origin"] = origin;
+    j["world_frame"] = "poses_world.txt: local ENU at geodetic_origin (x east, y north, z up; WGS84, ellipsoidal height)";
+    j["gnss"] = gnss_json(*out.gnss, *gnss);
+  }
   write_file_atomic((dir / "scenario.json").string(), [&](std::ostream& out) { out << j.dump() << "\n"; });
 }
 
@@ -337,8 +376,13 @@ size_t write_simulation(const std::string& dir_name, const SimulationConfig& con
     write_imu_txt((dir / "imu.txt").string(), imu.samples);
     write_imu_txt((dir / "imu_bias.txt").string(), imu.bias);
   }
+  std::optional<SimulatedGnss> gnss;
+  if (output.gnss) {
+    gnss = simulate_gnss(sim, *output.gnss, config.seed);
+    write_gnss_txt((dir / "gnss.txt").string(), gnss->fixes);
+  }
   sink.close();
-  write_metadata(dir, sim, config, output, total);
+  write_metadata(dir, sim, config, output, total, gnss ? &*gnss : nullptr);
   if (!quiet) {
     const std::string scans = output.bag ? fs::path(simulated_bag_path(dir_name, *output.bag)).filename().string() + " (/points)"
                                          : std::string("velodyne/") + (sim.realism().motion_distortion ? ", point_times/" : "");

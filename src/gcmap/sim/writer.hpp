@@ -5,6 +5,7 @@
 #include <string>
 
 #include "gcmap/io/bag_scans.hpp"
+#include "gcmap/sim/gnss.hpp"
 #include "gcmap/sim/imu.hpp"
 #include "gcmap/sim/simulator.hpp"
 
@@ -31,6 +32,9 @@ struct OutputOptions {
   // Also an IMU (sim/imu.hpp): imu.txt and imu_bias.txt in DIR, and a bag's /imu topic
   // (sensor_msgs/Imu; with livox_custom_msg the acceleration in g, as the Livox driver writes it).
   std::optional<ImuSimConfig> imu;
+  // Also GNSS fixes (sim/gnss.hpp): gnss.txt in DIR, beside the scans or the bag; scenario.json
+  // gives the world's geodetic origin (poses_world.txt is local ENU there) and the receiver model.
+  std::optional<GnssSimConfig> gnss;
   // Needs motion distortion; other than zero, a float time: the KITTI layout's point_times/ or velodyne.
   TimeMistake mistake = TimeMistake::none;
 };
