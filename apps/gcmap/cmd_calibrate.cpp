@@ -8,7 +8,6 @@
 
 #include "commands.hpp"
 #include "gcmap/calibration/elevation_calibration.hpp"
-#include "gcmap/core/deskew.hpp"
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/se3.hpp"
 #include "gcmap/io/file.hpp"
@@ -46,16 +45,10 @@ void add_batch(const std::vector<Pending>& batch, const Trajectory& traj, const 
       spdlog::warn("skipping scan {}: {}", f, e.what());
       return;
     }
-    CalibrationScan& s = out[k];
-    s.bins = ElevationCalibration::bins(*p.cloud);
-    s.T_world_sensor = traj.poses[f];
     const int a = f + 1 < static_cast<int>(traj.poses.size()) ? f : f - 1;
     const double dt = a >= 0 ? stamps[a + 1] - stamps[a] : 0.0;
-    if (p.cloud->has_times() && config.preprocess.deskew && dt > 1e-6)
-      deskew(*p.cloud, se3_log(traj.poses[a].inverse() * traj.poses[a + 1]) / dt);
-    p.cloud->times.clear();
-    p.cloud->intensities.clear();
-    s.cloud = std::move(*p.cloud);
+    const Vector6d velocity = dt > 1e-6 ? Vector6d(se3_log(traj.poses[a].inverse() * traj.poses[a + 1]) / dt) : Vector6d::Zero();
+    out[k] = calibration_scan(std::move(*p.cloud), traj.poses[f], config.preprocess.deskew && dt > 1e-6 ? &velocity : nullptr);
   });
   for (CalibrationScan& s : out)
     if (!s.cloud.empty()) scans.push_back(std::move(s));
@@ -98,15 +91,8 @@ int calibrate(const CalibrateOptions& o) {
   const ElevationCalibration c = ElevationCalibration::estimate(scans);
   const std::string text = c.to_text();
   write_file_atomic(o.output, [&](std::ostream& s) { s << text; });
-  size_t bins = 0;
-  double largest = 0.0;
-  for (int e = -450; e <= 450; ++e) {
-    const double offset = c.offset(e * 0.1 * M_PI / 180.0);
-    bins += offset != 0.0;
-    largest = std::max(largest, std::abs(offset) * 180.0 / M_PI);
-  }
-  std::fprintf(stderr, "Wrote %s: elevation offsets for %zu elevations (largest %.3f deg); map with --elevation-calibration %s\n",
-               o.output.c_str(), bins, largest, o.output.c_str());
+  std::fprintf(stderr, "Wrote %s: elevation offsets for %d elevations (largest %.3f deg); map with --elevation-calibration %s\n",
+               o.output.c_str(), c.num_offsets(), c.largest_offset() * 180.0 / M_PI, o.output.c_str());
   return 0;
 }
 

@@ -35,7 +35,9 @@ void add_inspect(CLI::App& app, Runner& run) {
                               .kitti_vertical_correction = pc.kitti_vertical_correction,
                               .deskew = pc.deskew,
                               .deskew_from_azimuth = pc.deskew_from_azimuth,
-                              .elevation_calibration = pc.elevation_calibration};
+                              .elevation_calibration = pc.elevation_calibration,
+                              .estimate_elevation_frames = c.calibration.estimate_elevation ? c.calibration.frames : 0,
+                              .gnss_file = ""};
       io.sample_scans = opt->sample;
       const InspectReport r = inspect_recording(opt->input, io);
       if (opt->json) std::printf("%s\n", r.to_json().dump().c_str());

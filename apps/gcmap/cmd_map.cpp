@@ -27,7 +27,7 @@ struct Overrides {
   bool pcd = false;
   bool no_explicit_loops = false;
   bool no_render = false;
-  bool no_deskew = false, deskew_from_azimuth = false;
+  bool no_deskew = false, deskew_from_azimuth = false, no_elevation_estimate = false;
   int threads = 0;
   std::string device = "auto";
 
@@ -47,6 +47,9 @@ struct Overrides {
         "Scans without per-point times: derive them from the azimuth of a spinning sensor (preprocess.deskew_from_azimuth)");
     cmd->add_option("--elevation-calibration", elevation_calibration,
                     "Per-beam elevation offsets from `gcmap calibrate` (preprocess.elevation_calibration)");
+    cmd->add_flag("--no-elevation-estimate", no_elevation_estimate,
+                  "Map the scans as they are, without first estimating per-beam elevation offsets "
+                  "(calibration.estimate_elevation: false)");
     cmd->add_option("--threads", threads, "Worker threads (0 = all cores)")->capture_default_str();
   }
   MappingConfig resolve() const {
@@ -60,6 +63,7 @@ struct Overrides {
     if (no_deskew) c.preprocess.deskew = false;
     if (deskew_from_azimuth) c.preprocess.deskew_from_azimuth = true;
     if (!elevation_calibration.empty()) c.preprocess.elevation_calibration = elevation_calibration;
+    if (no_elevation_estimate) c.calibration.estimate_elevation = false;
     try {
       c.validate();
     } catch (const Error& e) { throw Error(std::string("bad option: ") + e.what()); }
@@ -102,6 +106,10 @@ void add_map(CLI::App& app, Runner& run) {
       opt->config = ov->resolve();
       opt->device = parse_device(ov->device, "--device");
       const MapRunResult r = run_mapping(*opt);
+      if (r.nothing_written) {
+        std::fprintf(stderr, "Interrupted while estimating the beam elevations: nothing mapped, nothing written.\n");
+        return 128 + r.signal;
+      }
       std::printf("{\"frames\":%zu,\"submaps\":%zu,\"factors\":%zu,\"seconds\":%.3f,\"frames_per_second\":%.2f}\n", r.frames,
                   r.submaps, r.factors, r.seconds, r.fps);
       std::fprintf(stderr, "%s %zu frames in %.1f s (%.1f frames/s): %zu submaps, %zu global factors; peak memory %.0f MB.\n",
@@ -109,8 +117,9 @@ void add_map(CLI::App& app, Runner& run) {
                    peak_rss_bytes() / 1e6);
       std::fprintf(stderr,
                    "Wrote %s: trajectory.kitti and .tum (optimized poses), odometry.kitti, map.ply%s, graph.json, stats.json%s, "
-                   "quality.json and report.html (run quality, verdict first), config.yaml, session/ (for localize and merge).\n",
-                   opt->output.c_str(), opt->config.output.pcd ? " and map.pcd" : "", r.signal ? " (marked partial)" : "");
+                   "quality.json and report.html (run quality, verdict first), config.yaml%s, session/ (for localize and merge).\n",
+                   opt->output.c_str(), opt->config.output.pcd ? " and map.pcd" : "", r.signal ? " (marked partial)" : "",
+                   r.elevation_calibration ? ", elevation_calibration.txt (the beam offsets applied)" : "");
       if (!ov->no_render)
         for (const auto& f : viz::write_run_pictures(opt->output, {}))
           std::fprintf(stderr, "Wrote %s: %s.\n", f.path.c_str(), f.what.c_str());
@@ -166,6 +175,7 @@ void add_demo(CLI::App& app, Runner& run) {
       std::printf("mapping %s ...\n", mo.input.c_str());
       std::fflush(stdout);
       const MapRunResult r = run_mapping(mo);
+      if (r.nothing_written) return 128 + r.signal;
       const Poses gt = read_trajectory((dir / "sim" / "poses.txt").string()).poses;
       const Poses odom = read_trajectory((dir / "map" / "odometry.kitti").string()).poses;
       const Poses est = read_trajectory((dir / "map" / "trajectory.kitti").string()).poses;

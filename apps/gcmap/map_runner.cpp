@@ -22,6 +22,7 @@
 #include "gcmap/mapping/pipeline.hpp"
 #include "gcmap/mapping/quality.hpp"
 #include "gcmap/mapping/report.hpp"
+#include "gcmap/mapping/self_calibration.hpp"
 #include "gcmap/session/session.hpp"
 #include "gcmap/viz/report_html.hpp"
 #include "progress.hpp"
@@ -225,6 +226,8 @@ void write_outputs(const MappingPipeline& pipeline, int frame_offset, const MapR
     write_file_atomic((out / "quality.json").string(), [&](std::ostream& s) { s << quality_json(quality).dump() << "\n"; });
     write_file_atomic((out / "report.html").string(), [&](std::ostream& s) { s << viz::report_html(quality, pipeline); });
     write_file_atomic((out / "config.yaml").string(), [&](std::ostream& s) { s << o.config.to_yaml(); });
+    if (const ElevationCalibration* c = pipeline.elevation_calibration())
+      write_file_atomic((out / "elevation_calibration.txt").string(), [&](std::ostream& s) { s << c->to_text(); });
     next("session/");
     write_session((out / "session").string(), pipeline, traj.stamps);
   });
@@ -271,6 +274,39 @@ void finish_with_progress(MappingPipeline& pipeline, std::optional<int> max_iter
 
 }  // namespace
 
+namespace {
+
+// The self-calibration's pass over the first frames, from a source of its own; states its outcome
+// (assumptions.beam_calibration, a line).
+std::shared_ptr<const ElevationCalibration> estimate_elevation(const MapRunOptions& o, bool kitti_hdl64,
+                                                               InputAssumptions& assumptions) {
+  MapRunOptions first = o;
+  first.max_frames = o.max_frames > 0 ? std::min(o.max_frames, o.config.calibration.frames) : o.config.calibration.frames;
+  const auto open = [&first] { return open_input(first).source; };
+  const size_t frames = open()->size_hint();
+  Progress progress("beam elevation estimate, frame", frames * o.config.calibration.passes, o.quiet);
+  SelfCalibration c;
+  {
+    SignalScope signals;
+    c = self_calibrate_elevation(open, o.config, PipelineOptions{.kitti_hdl64 = kitti_hdl64, .elevation_calibration = nullptr},
+                                 [&](int f) { progress.update(f + 1); }, &g_stop);
+  }
+  progress.finish();
+  if (g_stop) return nullptr;
+  assumptions.beam_calibration = {c.calibration ? "estimated" : "none", c.summary};
+  spdlog::info("beam calibration: {}", c.summary);
+  return c.calibration;
+}
+
+MapRunResult interrupted_before_mapping() {
+  MapRunResult r;
+  r.signal = g_last_signal;
+  r.nothing_written = true;
+  return r;
+}
+
+}  // namespace
+
 Input open_input(const MapRunOptions& o) {
   if (o.start < 0) throw Error("--start: must be >= 0");
   if (o.max_frames < 0) throw Error("--max-frames: must be >= 0");
@@ -282,6 +318,7 @@ Input open_input(const MapRunOptions& o) {
                         .deskew = pc.deskew,
                         .deskew_from_azimuth = pc.deskew_from_azimuth,
                         .elevation_calibration = pc.elevation_calibration,
+                        .estimate_elevation_frames = o.config.calibration.estimate_elevation ? o.config.calibration.frames : 0,
                         .gnss_file = o.gnss_file};
   if (is_bag_path(o.input)) {
     if (o.start_time < 0 || o.duration < 0) throw Error("--start-time and --duration must be >= 0");
@@ -321,6 +358,10 @@ MapRunResult run_mapping(const MapRunOptions& o) {
 
   PipelineOptions po;
   po.kitti_hdl64 = input.kitti_hdl64;
+  if (o.config.calibration.estimate_elevation && o.config.preprocess.elevation_calibration.empty()) {
+    po.elevation_calibration = estimate_elevation(o, input.kitti_hdl64, input.assumptions);
+    if (g_stop) return interrupted_before_mapping();
+  }
   MappingPipeline pipeline(o.config, cuda::make_backend(o.device), po);
   if (!input.assumptions.gnss_fixes.empty()) pipeline.set_gnss(gnss_positions(input.assumptions.gnss_fixes));
   Progress progress("frame", source.size_hint(), o.quiet);
@@ -354,6 +395,7 @@ MapRunResult run_mapping(const MapRunOptions& o) {
   r.seconds = pipeline.stats().seconds;
   r.fps = r.seconds > 0 ? r.frames / r.seconds : 0.0;
   r.signal = signal;
+  r.elevation_calibration = pipeline.elevation_calibration() != nullptr;
   if (!input.assumptions.gnss_fixes.empty()) r.gnss = gnss_line(pipeline.mapper().gnss_stats(), gnss_epsg(input.assumptions));
   if (!signal && 2 * unusable > frames)
     r.failure = o.input + ": " + std::to_string(unusable) + " of its " + std::to_string(frames) +

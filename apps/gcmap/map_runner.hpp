@@ -28,6 +28,8 @@ struct MapRunResult {
   int signal = 0;       // SIGINT or SIGTERM when interrupted (outputs are then partial)
   std::string failure;  // why the run failed although it wrote its outputs (most scans unusable), else empty
   std::string gnss;     // a line on the GNSS fixes used and rejected; empty without GNSS
+  bool nothing_written = false;
+  bool elevation_calibration = false;  // elevation_calibration.txt written  // interrupted before mapping began (while estimating the beam elevations)
 };
 
 // A sequence folder or a ROS bag.

@@ -4,6 +4,7 @@
 
 #include <filesystem>
 
+#include "gcmap/calibration/elevation_calibration.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "test_util.hpp"
 
@@ -19,6 +20,7 @@ TEST(InputAssumptionsE2E, Hku1StampsBesideTheScansFolder) {
   EXPECT_NE(r.err.find("hku1_livox/times.txt, one stamp per scan"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("elevation correction: none (not the KITTI layout"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("no stamps"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("beam calibration: not estimated: 0 of the first 3 scans show rings"), std::string::npos) << r.err;
   // The stamps of the run are the file's, not 0.1 s apart.
   const Trajectory t = read_trajectory(dir / "out/trajectory.tum");
   ASSERT_EQ(t.stamps.size(), 20u);
@@ -38,6 +40,36 @@ TEST(InputAssumptionsE2E, MapStatesATimeMistakeOfItsBag) {
   EXPECT_NE(r.err.find("milliseconds where seconds are expected"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("deskewing: off (preprocess.deskew is off"), std::string::npos) << r.err;
   EXPECT_NE(slurp(dir / "out/stats.json").find("milliseconds where seconds"), std::string::npos);
+}
+
+// A spinning sensor's beam offsets are estimated before mapping where the drive travels far enough,
+// stated, written beside the map and applied; not where it does not, and not with --no-elevation-estimate.
+TEST(InputAssumptionsE2E, MapEstimatesBeamElevationsOfASpinningSensorThatTravels) {
+  TempDir dir;
+  ASSERT_EQ(run_gcmap("simulate -o " + (dir / "sim") + " --scenario city --frames 80 --realism calibration").code, 0);
+  const CliRun r = run_gcmap("map " + (dir / "sim") + " -o " + (dir / "out") + " --no-render");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("beam calibration: estimated before mapping (calibration.estimate_elevation, from the odometry of "
+                       "the first 300 frames)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("beam calibration: estimated from the odometry of the first 80 frames"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("elevation_calibration.txt (the beam offsets applied)"), std::string::npos) << r.err;
+  EXPECT_GT(ElevationCalibration::load(dir / "out/elevation_calibration.txt").num_offsets(), 10);
+  EXPECT_NE(slurp(dir / "out/stats.json").find("\"beam_calibration\":{\"value\":\"estimated\""), std::string::npos);
+
+  const CliRun off = run_gcmap("map " + (dir / "sim") + " -o " + (dir / "off") + " --no-render --no-elevation-estimate");
+  ASSERT_EQ(off.code, 0) << off.err;
+  EXPECT_NE(off.err.find("beam calibration: none (preprocess.elevation_calibration is empty, calibration.estimate_elevation "
+                         "is off)"),
+            std::string::npos)
+      << off.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "off/elevation_calibration.txt"));
+
+  const CliRun near = run_gcmap("map " + (dir / "sim") + " -o " + (dir / "near") + " --no-render --max-frames 20");
+  ASSERT_EQ(near.code, 0) << near.err;
+  EXPECT_NE(near.err.find("beam calibration: not estimated: the first 20 frames travel"), std::string::npos) << near.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "near/elevation_calibration.txt"));
 }
 
 }  // namespace

@@ -88,38 +88,21 @@ std::vector<std::pair<int, int>> disagreeing(const QualityReport& r) {
   return out;
 }
 
-// The open revisit, mapped once for the tests that judge it.
-const MappedDrive& open_revisit() {
-  static const MappedDrive open = map_revisit(false);
-  return open;
-}
-
-TEST(Quality, AnUnclosedRevisitIsFlaggedAndAClosedOneIsNot) {
-  const MappedDrive& open = open_revisit();
-  const auto flagged = disagreeing(open.report);
-  ASSERT_FALSE(flagged.empty()) << "consecutive shift " << open.report.consecutive_shift;
+// The truth says each flagged pair passes the same place, far apart in time.
+void expect_revisits(const MappedDrive& open, const std::vector<std::pair<int, int>>& flagged) {
   for (const auto& [a, b] : flagged) {
-    // The truth: the two submaps pass the same place (keyframes within 5 m), far apart in time.
-    double closest = 1e9;
+    double closest = 1e9;  // between the keyframes of the two submaps
     for (const int ka : open.pipeline->submaps()[a].keyframes)
       for (const int kb : open.pipeline->submaps()[b].keyframes)
         closest = std::min(closest, (open.truth[ka].translation() - open.truth[kb].translation()).norm());
     EXPECT_LT(closest, 5.0) << a << "-" << b;
     EXPECT_GT(b - a, 3) << a << "-" << b;
   }
-  const bool said = std::any_of(open.report.verdict.begin(), open.report.verdict.end(),
-                                [](const std::string& s) { return s.find("a revisit that did not close") != std::string::npos; });
-  EXPECT_TRUE(said) << open.report.verdict[0];
-
-  const MappedDrive closed = map_revisit(true);
-  EXPECT_TRUE(disagreeing(closed.report).empty()) << closed.report.verdict[0];
 }
 
 // The quality: section of the config reaches the flags: the same drive judged with a larger
 // factor flags no pair, with a higher conditioning threshold more frames.
-TEST(Quality, ConfigKeysChangeTheFlags) {
-  const MappedDrive& open = open_revisit();
-  ASSERT_FALSE(disagreeing(open.report).empty());
+void expect_config_keys_change_the_flags(const MappedDrive& open) {
   const MappingConfig lenient = MappingConfig::parse("quality:\n  inconsistent_factor: 1000\n", "test");
   EXPECT_TRUE(disagreeing(assess_quality(*open.pipeline, lenient.quality)).empty());
   const auto degenerate = [](const QualityReport& r) {
@@ -131,10 +114,8 @@ TEST(Quality, ConfigKeysChangeTheFlags) {
 
 // Every submap of more than one keyframe measures its keyframes' disagreement, and it is the
 // baseline of its pairs: averaged over the keyframes, it predicts the shift of consecutive submaps.
-// A noisier sensor makes the keyframes disagree more.
-TEST(Quality, SubmapNoiseIsTheKeyframesDisagreement) {
-  const MappedDrive& noisy = open_revisit();
-  const MappedDrive clean = map_drive("small", 0);
+// A noisier sensor (the realistic one) makes the keyframes disagree more than the ideal one.
+void expect_noise_is_the_keyframes_disagreement(const MappedDrive& clean, const MappedDrive& noisy) {
   const auto mid = [](std::vector<double> v) {
     std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
     return v[v.size() / 2];
@@ -163,6 +144,22 @@ TEST(Quality, SubmapNoiseIsTheKeyframesDisagreement) {
   ASSERT_GT(noise[0].size(), 5u);
   ASSERT_GT(noise[1].size(), 5u);
   EXPECT_GT(mid(noise[1]), 1.5 * mid(noise[0]));
+}
+
+// One test for the three drives it needs (each mapping takes a while).
+TEST(Quality, AnUnclosedRevisitIsFlaggedAgainstTheKeyframesNoiseAndAClosedOneIsNot) {
+  const MappedDrive open = map_revisit(false);
+  const auto flagged = disagreeing(open.report);
+  ASSERT_FALSE(flagged.empty()) << "consecutive shift " << open.report.consecutive_shift;
+  expect_revisits(open, flagged);
+  const bool said = std::any_of(open.report.verdict.begin(), open.report.verdict.end(),
+                                [](const std::string& s) { return s.find("a revisit that did not close") != std::string::npos; });
+  EXPECT_TRUE(said) << open.report.verdict[0];
+  expect_config_keys_change_the_flags(open);
+
+  const MappedDrive closed = map_revisit(true);
+  EXPECT_TRUE(disagreeing(closed.report).empty()) << closed.report.verdict[0];
+  expect_noise_is_the_keyframes_disagreement(map_drive("small", 0), open);
 }
 
 // report.html in headless Chromium (as view.html in test_viewer_browser.cpp): it loads without a

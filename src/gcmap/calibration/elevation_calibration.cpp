@@ -3,12 +3,14 @@
 #include <tbb/parallel_for.h>
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <functional>
 #include <fstream>
 #include <sstream>
 
+#include "gcmap/core/deskew.hpp"
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/gaussian_voxel_map.hpp"
 #include "gcmap/core/se3.hpp"
@@ -83,10 +85,56 @@ double ElevationCalibration::offset(double elevation) const {
   return b < 0 ? 0.0 : offset_[b];
 }
 
+void ElevationCalibration::drop_below(double threshold) {
+  for (double& o : offset_)
+    if (std::abs(o) < threshold) o = 0.0;
+}
+
+int ElevationCalibration::num_offsets() const {
+  return static_cast<int>(std::count_if(offset_.begin(), offset_.end(), [](double o) { return o != 0.0; }));
+}
+
+double ElevationCalibration::largest_offset() const {
+  double largest = 0.0;
+  for (const double o : offset_) largest = std::max(largest, std::abs(o));
+  return largest;
+}
+
 std::vector<int16_t> ElevationCalibration::bins(const PointCloud& cloud) {
   std::vector<int16_t> out(cloud.size(), -1);
   for (size_t i = 0; i < cloud.size(); ++i) out[i] = static_cast<int16_t>(bin_of(cloud.points[i]));
   return out;
+}
+
+bool ElevationCalibration::has_rings(const PointCloud& raw) {
+  std::vector<int> count(kBins, 0);
+  int total = 0;
+  for (const Eigen::Vector3f& p : raw.points) {
+    const double h = std::hypot(p.x(), p.y());
+    const int b = h > 5.0 ? bin_of(p, h) : -1;
+    if (b >= 0) ++count[b], ++total;
+  }
+  if (total < 1000) return false;
+  // The span holding 98 % of the points, and how many of its bins hold 80 % of them.
+  int first = 0, last = kBins - 1;
+  for (int seen = 0; seen + count[first] <= total / 100; ++first) seen += count[first];
+  for (int seen = 0; seen + count[last] <= total / 100; --last) seen += count[last];
+  std::vector<int> sorted(count.begin() + first, count.begin() + last + 1);
+  std::sort(sorted.begin(), sorted.end(), std::greater<>());
+  int needed = 0;
+  for (int held = 0; held < 0.8 * total && needed < static_cast<int>(sorted.size()); ++needed) held += sorted[needed];
+  return needed < 0.4 * static_cast<double>(sorted.size());
+}
+
+CalibrationScan calibration_scan(PointCloud cloud, const Eigen::Isometry3d& T_world_sensor, const Vector6d* velocity) {
+  CalibrationScan s;
+  s.bins = ElevationCalibration::bins(cloud);
+  s.T_world_sensor = T_world_sensor;
+  if (velocity && cloud.has_times()) deskew(cloud, *velocity);
+  cloud.times.clear();
+  cloud.intensities.clear();
+  s.cloud = std::move(cloud);
+  return s;
 }
 
 void ElevationCalibration::correct(PointCloud& cloud) const {
@@ -147,10 +195,14 @@ namespace {
 // thread count).
 struct BinSums {
   std::vector<double> info = std::vector<double>(kBins), grad = std::vector<double>(kBins);
+  std::vector<double> range = std::vector<double>(kBins);  // horizontal, summed
   std::vector<int> count = std::vector<int>(kBins);
-  void add(int b, double w, double j, double e) { info[b] += w * j * j, grad[b] += w * j * e, ++count[b]; }
+  void add(int b, double w, double j, double e, double h) {
+    info[b] += w * j * j, grad[b] += w * j * e, range[b] += h, ++count[b];
+  }
   void add(const BinSums& o) {
-    for (int b = 0; b < kBins; ++b) info[b] += o.info[b], grad[b] += o.grad[b], count[b] += o.count[b];
+    for (int b = 0; b < kBins; ++b)
+      info[b] += o.info[b], grad[b] += o.grad[b], range[b] += o.range[b], count[b] += o.count[b];
   }
 };
 
@@ -189,7 +241,7 @@ BinSums world_sums(const std::vector<CalibrationScan>& scans, const Corrected& c
       const Eigen::Vector3d& n = normals.n[v];
       const double variance = normals.variance[v] + n.dot(R * s.cloud.covs[i].cast<double>() * R.transpose() * n);
       const double e = n.dot(ground.mean(v).cast<double>() - q), d = std::abs(e) / std::sqrt(variance);
-      sums[k].add(s.bins[i], (d > kHuber ? kHuber / d : 1.0) / variance, n.dot(R * elevation_direction(p)), e);
+      sums[k].add(s.bins[i], (d > kHuber ? kHuber / d : 1.0) / variance, n.dot(R * elevation_direction(p)), e, p.head<2>().norm());
     }
   });
   return total(sums);
@@ -255,7 +307,10 @@ ElevationCalibration ElevationCalibration::estimate(const std::vector<Calibratio
   for (int it = 0; it < options.iterations; ++it) {
     const BinSums sums = world_sums(scans, corrected, options);
     for (int b = 0; b < kBins; ++b) {
-      if (sums.count[b] < options.min_points || sums.info[b] <= 0.0) continue;
+      // A beam whose ground lies mostly within near_range makes the reference itself: it cannot be
+      // measured against it (and bends far ground little).
+      if (sums.count[b] < options.min_points || sums.info[b] <= 0.0 || sums.range[b] < options.near_range * sums.count[b])
+        continue;
       c.offset_[b] = std::clamp(c.offset_[b] + sums.grad[b] / sums.info[b], -kMaxOffset, kMaxOffset);
     }
   }

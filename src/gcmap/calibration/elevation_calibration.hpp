@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "gcmap/core/point_cloud.hpp"
+#include "gcmap/core/se3.hpp"
 
 namespace gcmap {
 
@@ -22,6 +23,11 @@ struct CalibrationScan {
   std::vector<int16_t> bins;
   Eigen::Isometry3d T_world_sensor = Eigen::Isometry3d::Identity();
 };
+
+// A prepared scan (sensor frame at its stamp, per-point times relative to it) as the estimate takes
+// it: binned, then deskewed by `velocity` ([omega; rho] per second, none: as it is), times and
+// intensities dropped.
+CalibrationScan calibration_scan(PointCloud cloud, const Eigen::Isometry3d& T_world_sensor, const Vector6d* velocity);
 
 struct CalibrationEstimate {
   double near_range = 15.0;  // m: points closer than this make the reference ground
@@ -48,10 +54,19 @@ class ElevationCalibration {
 
   // The offset (rad) of points measured at this elevation (rad).
   double offset(double elevation) const;
+  // Sets offsets smaller than `threshold` (rad) in magnitude to zero.
+  void drop_below(double threshold);
+  // Elevations given an offset, and the largest offset (rad) in magnitude.
+  int num_offsets() const;
+  double largest_offset() const;
   // Turns each point (sensor frame) up by its bin's offset, keeping its range and azimuth.
   void correct(PointCloud& cloud) const;
   // Each point's bin, -1 outside +-45 deg or on the axis.
   static std::vector<int16_t> bins(const PointCloud& cloud);
+  // A raw scan from beams at fixed elevations (a spinning multi-beam sensor): most of its points
+  // beyond 5 m fall into few of the 0.1 deg bins its elevations span. False for non-repetitive
+  // patterns (Livox), whose bins would each mix many directions.
+  static bool has_rings(const PointCloud& raw);
   // Gauss-Newton on every bin's offset: points against the level ground made of the near points.
   static ElevationCalibration estimate(const std::vector<CalibrationScan>& scans, const CalibrationEstimate& options = {});
 

@@ -145,8 +145,12 @@ void decide_deskew(InputAssumptions& a, const InputOptions& o) {
   else if (a.point_times) a.deskew = {"on", "per-point times: " + a.point_times_text.value};
   else if (o.deskew_from_azimuth) a.deskew = {"on", "per-point times derived from the azimuth (preprocess.deskew_from_azimuth)"};
   else a.deskew = {"off", "the scans carry no per-point times"};
-  a.beam_calibration = o.elevation_calibration.empty() ? Assumed{"none", "preprocess.elevation_calibration is empty"}
-                                                       : Assumed{o.elevation_calibration, "preprocess.elevation_calibration"};
+  if (!o.elevation_calibration.empty()) a.beam_calibration = {o.elevation_calibration, "preprocess.elevation_calibration"};
+  else if (o.estimate_elevation_frames > 0)
+    a.beam_calibration = {"estimated before mapping",
+                          "calibration.estimate_elevation, from the odometry of the first " +
+                              std::to_string(o.estimate_elevation_frames) + " frames"};
+  else a.beam_calibration = {"none", "preprocess.elevation_calibration is empty, calibration.estimate_elevation is off"};
 }
 
 void check_first_times(InputAssumptions& a, const std::vector<float>& times, double offset, double interval) {

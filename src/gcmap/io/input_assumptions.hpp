@@ -26,6 +26,7 @@ struct InputOptions {
   bool deskew = true;                     // preprocess.deskew
   bool deskew_from_azimuth = false;       // preprocess.deskew_from_azimuth
   std::string elevation_calibration;      // preprocess.elevation_calibration
+  int estimate_elevation_frames = 0;      // calibration.frames when calibration.estimate_elevation, else 0
   std::string gnss_file;                  // --gnss: the fixes file, instead of gnss.txt beside the scans
 };
 

@@ -108,6 +108,34 @@ void visit_preprocess(Config& c, Visitor& v) {
 }
 
 template <typename Config, typename Visitor>
+void visit_calibration(Config& c, Visitor& v) {
+  v("calibration", "estimate_elevation", c.calibration.estimate_elevation,
+    KeyDoc{"-", 0, 0, "mapping/",
+           "Without preprocess.elevation_calibration, `gcmap map` first estimates per-beam elevation offsets of a spinning "
+           "sensor from the odometry of the first frames (levelled by walls) and maps every scan corrected by them."});
+  v("calibration", "frames", c.calibration.frames,
+    KeyDoc{"-", 10, 100000, "mapping/", "The first frames whose odometry the elevation estimate reads."});
+  v("calibration", "every", c.calibration.every,
+    KeyDoc{"-", 1, 1000, "mapping/", "Every n-th of those frames enters the estimate."});
+  v("calibration", "passes", c.calibration.passes,
+    KeyDoc{"-", 1, 10, "mapping/",
+           "Odometry passes over those frames: the first places the scans as they came, each later one the scans corrected by "
+           "the estimate before it, which gives back the part of the offsets that a drifting trajectory hides."});
+  v("calibration", "min_offset_deg", c.calibration.min_offset_deg,
+    KeyDoc{"deg", 0, 2, "mapping/",
+           "Estimated offsets smaller than this are left out: a sensor without bias still gets hundredths of a degree from "
+           "the estimate, and correcting by them costs accuracy; factory errors that bend far ground are about 0.1 deg or more."});
+  v("calibration", "downsample", c.calibration.downsample,
+    KeyDoc{"m", 0.01, 100, "mapping/",
+           "Voxel size of the scans the passes' odometry registers (at least preprocess.downsample): coarser than the run's "
+           "for speed; the scans that enter the estimate keep preprocess.downsample."});
+  v("calibration", "min_travel", c.calibration.min_travel,
+    KeyDoc{"m", 0, 100000, "mapping/",
+           "The sensor must travel this far over those frames, or nothing is estimated: far ground is compared with the ground "
+           "that other scans saw from close by."});
+}
+
+template <typename Config, typename Visitor>
 void visit_odometry_local(Config& c, Visitor& v) {
   v("odometry", "voxel_resolution", c.odometry.voxel_resolution,
     KeyDoc{"m", 0.01, 100, "odometry/", "Voxel size of the scan-to-model VGICP registration of the odometry."});
@@ -365,6 +393,7 @@ void visit_quality(Config& c, Visitor& v) {
 template <typename Config, typename Visitor>
 void visit(Config& c, Visitor&& v) {
   visit_preprocess(c, v);
+  visit_calibration(c, v);
   visit_odometry_local(c, v);
   visit_global(c, v);
   visit_loop(c, v);

@@ -101,6 +101,18 @@ struct MergeConfig {
   int max_iterations = 50;  // joint LM over all sessions
 };
 
+// Per-beam elevation offsets estimated by `gcmap map` itself before mapping, from the odometry of
+// the first frames (mapping/self_calibration.hpp), when no calibration file is given.
+struct CalibrationConfig {
+  bool estimate_elevation = true;
+  int frames = 300;          // the first frames read for it
+  int every = 5;             // every n-th of them enters the estimate
+  int passes = 2;            // odometry passes, each on the scans corrected by the previous estimate
+  double min_offset_deg = 0.05;  // smaller offsets are left out
+  double downsample = 0.5;       // m: voxels of the scans the passes' odometry registers
+  double min_travel = 40.0;  // m the sensor must move over those frames, else no estimate
+};
+
 // The run-quality report (mapping/quality.hpp): what its flags take.
 struct QualityConfig {
   double degenerate_conditioning = 0.05;  // a frame's translation conditioning below this: degenerate
@@ -137,6 +149,7 @@ struct ConfigKeyDoc {
 
 struct MappingConfig {
   PreprocessConfig preprocess;
+  CalibrationConfig calibration;
   OdometryConfig odometry;
   LocalMappingConfig local;
   GlobalMappingConfig global;

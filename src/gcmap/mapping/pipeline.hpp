@@ -104,6 +104,8 @@ class MappingPipeline {
   size_t run(ScanSource& source, const RunOptions& options);
 
   const MappingConfig& config() const { return config_; }
+  // The per-beam elevation offsets applied to every raw scan; null: none.
+  const ElevationCalibration* elevation_calibration() const { return options_.elevation_calibration.get(); }
   const LinearizationBackend& backend() const { return *backend_; }
   size_t num_frames() const { return stamps_.size(); }
   const std::vector<double>& stamps() const { return stamps_; }
