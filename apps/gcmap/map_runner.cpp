@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/memory.hpp"
@@ -283,6 +284,8 @@ std::shared_ptr<const ElevationCalibration> estimate_elevation(const MapRunOptio
   MapRunOptions first = o;
   first.max_frames = o.max_frames > 0 ? std::min(o.max_frames, o.config.calibration.frames) : o.config.calibration.frames;
   const auto open = [&first] { return open_input(first).source; };
+  // The run reads every scan again and reports what is wrong with them: here only the progress.
+  std::optional<QuietWarnings> quiet(std::in_place);
   const size_t frames = open()->size_hint();
   Progress progress("beam elevation estimate, frame", frames * o.config.calibration.passes, o.quiet);
   SelfCalibration c;
@@ -292,9 +295,10 @@ std::shared_ptr<const ElevationCalibration> estimate_elevation(const MapRunOptio
                                  [&](int f) { progress.update(f + 1); }, &g_stop);
   }
   progress.finish();
+  quiet.reset();
   if (g_stop) return nullptr;
   assumptions.beam_calibration = {c.calibration ? "estimated" : "none", c.summary};
-  spdlog::info("beam calibration: {}", c.summary);
+  if (!o.quiet) spdlog::info("beam calibration: {}", c.summary);
   return c.calibration;
 }
 

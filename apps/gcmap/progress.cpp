@@ -17,6 +17,24 @@ std::string eta_text(double seconds) {
 }
 }  // namespace
 
+namespace {
+// The logger main() installs, kept while QuietWarnings puts a quiet one in its place.
+std::shared_ptr<spdlog::logger> g_shown;
+}  // namespace
+
+QuietWarnings::QuietWarnings() {
+  g_shown = spdlog::default_logger();
+  auto quiet = g_shown->clone("quiet");
+  quiet->set_level(spdlog::level::err);
+  spdlog::set_default_logger(quiet);
+}
+
+QuietWarnings::~QuietWarnings() {
+  spdlog::set_default_logger(g_shown);
+  spdlog::drop("quiet");
+  g_shown.reset();
+}
+
 Progress::Progress(std::string what, size_t total, bool quiet)
     : what_(std::move(what)), total_(total), quiet_(quiet), tty_(isatty(2)) {}
 
@@ -43,7 +61,7 @@ void Progress::draw(size_t done, const std::string& detail) {
     std::fprintf(stderr, "\r%s\033[K", line.c_str());
     drawn_ = true;
   } else {
-    spdlog::info("{}", line);
+    (g_shown ? g_shown : spdlog::default_logger())->info("{}", line);
   }
 }
 

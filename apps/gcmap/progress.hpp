@@ -9,6 +9,16 @@
 
 namespace gcmap::cli {
 
+// While alive, warnings of the library (the default logger's) are not shown; Progress lines still
+// are. For work that reads the input ahead of the run, which reports the same problems itself.
+class QuietWarnings {
+ public:
+  QuietWarnings();
+  ~QuietWarnings();
+  QuietWarnings(const QuietWarnings&) = delete;
+  QuietWarnings& operator=(const QuietWarnings&) = delete;
+};
+
 class Progress {
  public:
   // total 0: unknown (no ETA). quiet: nothing at all.

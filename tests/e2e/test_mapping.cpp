@@ -95,17 +95,15 @@ TEST_F(SmallScenario, CorruptScanInTheMiddleIsSkipped) {
   EXPECT_NE(slurp(*dir / "corrupt_out/config.yaml").find("loop:\n  enabled: false"), std::string::npos);
 }
 
-TEST_F(SmallScenario, InterruptionWritesPartialOutputs) {
-  // SIGINT once the run is under way (a second of CPU time spent): exit 130, every output written
-  // for the frames mapped so far, stats.json marked partial.
-  const std::string out = *dir / "interrupted";
+// `gcmap map SIM -o OUT ARGS` (stdout and stderr to `log`), sent SIGINT once it has spent a
+// second of CPU time; its exit status.
+int interrupted_map(const std::string& sim, const std::string& out, const std::string& log, const char* arg) {
   const pid_t pid = fork();
-  ASSERT_GE(pid, 0);
   if (pid == 0) {
-    const int null = open("/dev/null", O_WRONLY);
-    dup2(null, 1);
-    dup2(null, 2);
-    execl(GCMAP_CLI, GCMAP_CLI, "map", (*dir / "sim").c_str(), "-o", out.c_str(), "--quiet", "--no-explicit-loops", nullptr);
+    const int file = open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    dup2(file, 1);
+    dup2(file, 2);
+    execl(GCMAP_CLI, GCMAP_CLI, "map", sim.c_str(), "-o", out.c_str(), "--no-explicit-loops", "--no-render", arg, nullptr);
     _exit(127);
   }
   const auto cpu_ticks = [pid] {
@@ -118,11 +116,26 @@ TEST_F(SmallScenario, InterruptionWritesPartialOutputs) {
   };
   int status = 0;
   while (cpu_ticks() < sysconf(_SC_CLK_TCK) && waitpid(pid, &status, WNOHANG) == 0) usleep(20000);
-  ASSERT_EQ(waitpid(pid, &status, WNOHANG), 0) << "the run ended before it could be interrupted";
+  EXPECT_EQ(waitpid(pid, &status, WNOHANG), 0) << "the run ended before it could be interrupted";
   kill(pid, SIGINT);
-  ASSERT_EQ(waitpid(pid, &status, 0), pid);
-  ASSERT_TRUE(WIFEXITED(status));
-  EXPECT_EQ(WEXITSTATUS(status), 130);
+  EXPECT_EQ(waitpid(pid, &status, 0), pid);
+  EXPECT_TRUE(WIFEXITED(status));
+  return WEXITSTATUS(status);
+}
+
+TEST_F(SmallScenario, InterruptionWritesPartialOutputs) {
+  // SIGINT while the beam elevations are estimated, before any frame is mapped: exit 130, one line
+  // saying so, nothing written.
+  const std::string early = *dir / "interrupted_early";
+  EXPECT_EQ(interrupted_map(*dir / "sim", early, *dir / "early.log", "--quiet"), 130);
+  EXPECT_NE(slurp(*dir / "early.log").find("Interrupted while estimating the beam elevations: nothing mapped, nothing written."),
+            std::string::npos)
+      << slurp(*dir / "early.log");
+  EXPECT_FALSE(std::filesystem::exists(early + "/stats.json"));
+  // SIGINT once mapping is under way: exit 130, every output written for the frames mapped so far,
+  // stats.json marked partial.
+  const std::string out = *dir / "interrupted";
+  EXPECT_EQ(interrupted_map(*dir / "sim", out, *dir / "late.log", "--no-elevation-estimate"), 130);
   const std::string stats = slurp(out + "/stats.json");
   EXPECT_NE(stats.find("\"partial\":true"), std::string::npos) << stats.substr(0, 300);
   EXPECT_NE(stats.find("\"interrupted_by\":\"SIGINT\""), std::string::npos);
