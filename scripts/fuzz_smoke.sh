@@ -2,10 +2,10 @@
 # Builds the libFuzzer targets of fuzz/ (clang, ASan+UBSan) into build-fuzz/ and runs each on its
 # seed corpus for a bounded time. Fails on any crash, sanitizer report, uncaught exception, timeout,
 # or allocation over the malloc limit (a size taken from a header without checking it).
-# Usage: scripts/fuzz_smoke.sh [SECONDS_PER_TARGET (30)] [TARGET...]
+# Usage: scripts/fuzz_smoke.sh [SECONDS_PER_TARGET (20)] [TARGET...]
 set -euo pipefail
 cd "$(dirname "$0")/.."
-seconds=${1:-30}
+seconds=${1:-20}
 shift || true
 launcher=()
 # ccache, where installed, with paths relative to the checkout so another clone hits the same cache.
