@@ -273,10 +273,6 @@ void finish_with_progress(MappingPipeline& pipeline, std::optional<int> max_iter
   progress.finish(static_cast<size_t>(done), final_detail(pipeline, error));
 }
 
-}  // namespace
-
-namespace {
-
 // The self-calibration's pass over the first frames, from a source of its own; states its outcome
 // (assumptions.beam_calibration, a line).
 std::shared_ptr<const ElevationCalibration> estimate_elevation(const MapRunOptions& o, bool kitti_hdl64,

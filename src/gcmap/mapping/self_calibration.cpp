@@ -157,6 +157,7 @@ SelfCalibration self_calibrate_elevation(const std::function<std::unique_ptr<Sca
   PipelineOptions pass_options = options;
   for (int p = 0; p < config.calibration.passes && !(stop && stop->load()); ++p) {
     OdometryPass pass = run_odometry(*open(), config, pass_options, on_frame, p * r.frames, stop);
+    if (stop && stop->load()) return r;  // the run ends: nothing is mapped
     if (p == 0) {
       r.frames = static_cast<int>(pass.poses.size());
       r.travelled = travelled(pass.poses);
