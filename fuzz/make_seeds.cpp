@@ -11,6 +11,7 @@
 
 #include "bag_seeds.hpp"
 #include "gcmap/core/se3.hpp"
+#include "gcmap/io/gnss_io.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "gcmap/mapping/config.hpp"
@@ -107,6 +108,21 @@ void config_seeds(const fs::path& dir) {
               "# comment\nglobal:\n  mode: sliding-window\n  window: 3\nloop: {enabled: false, rings: 10}\n");
 }
 
+// gnss.txt (first byte 0) and a NavSatFix message in ROS 1 (1) and CDR (2).
+void gnss_seeds(const fs::path& dir) {
+  write_bytes(dir / "gnss.txt", std::string(1, '\0') +
+                                    "# stamp lat lon alt se sn su\n0.0 48.1 11.5 520.25 0.015 0.015 0.025\n"
+                                    "0.1 48.1000001 11.5000002 520.3 2 2.5 3\n");
+  NavSatFixMsg m;
+  m.stamp_ns = 1700000000123456789;
+  m.frame_id = "gps";
+  m.latitude = 48.1, m.longitude = 11.5, m.altitude = 520.0;
+  m.position_covariance = {0.0004, 0, 0, 0, 0.0004, 0, 0, 0, 0.0009};
+  m.covariance_type = NavSatCovariance::diagonal_known;
+  write_bytes(dir / "fix_ros1", std::string(1, '\1') + encode_navsatfix(m, MessageEncoding::ros1));
+  write_bytes(dir / "fix_cdr", std::string(1, '\2') + encode_navsatfix(m, MessageEncoding::cdr));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -116,8 +132,10 @@ int main(int argc, char** argv) {
   }
   const fs::path root = argv[1];
   const std::pair<const char*, void (*)(const fs::path&)> targets[] = {
-      {"fuzz_kitti_bin", bin_seeds},         {"fuzz_pcd", pcd_seeds},      {"fuzz_ply", ply_seeds},
-      {"fuzz_trajectory", trajectory_seeds}, {"fuzz_labels", label_seeds}, {"fuzz_config", config_seeds}};
+      {"fuzz_kitti_bin", bin_seeds}, {"fuzz_pcd", pcd_seeds},
+      {"fuzz_ply", ply_seeds},       {"fuzz_trajectory", trajectory_seeds},
+      {"fuzz_labels", label_seeds},  {"fuzz_config", config_seeds},
+      {"fuzz_gnss", gnss_seeds}};
   for (const auto& [name, make] : targets) {
     fs::create_directories(root / name);
     make(root / name);

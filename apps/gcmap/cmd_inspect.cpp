@@ -37,7 +37,8 @@ void add_inspect(CLI::App& app, Runner& run) {
                               .deskew_from_azimuth = pc.deskew_from_azimuth,
                               .elevation_calibration = pc.elevation_calibration,
                               .estimate_elevation_frames = c.calibration.estimate_elevation ? c.calibration.frames : 0,
-                              .gnss_file = ""};
+                              .gnss_file = "",
+                              .gnss_topic = ""};
       io.sample_scans = opt->sample;
       const InspectReport r = inspect_recording(opt->input, io);
       if (opt->json) std::printf("%s\n", r.to_json().dump().c_str());

@@ -89,8 +89,11 @@ void add_map(CLI::App& app, Runner& run) {
                   "Folders: the scans' stamps, one line per scan (default: times.txt in the sequence folder, in the scans folder "
                   "or beside it)");
   cmd->add_option("--gnss", opt->gnss_file,
-                  "GNSS fixes (stamp lat lon alt sigma_e sigma_n sigma_u per line; default: gnss.txt beside the scans): the map "
-                  "in local ENU, trajectory_utm.txt and trajectory_wgs84.txt");
+                  "GNSS fixes (stamp lat lon alt sigma_e sigma_n sigma_u per line; default: gnss.txt beside the scans, else a "
+                  "bag's only sensor_msgs/NavSatFix topic): the map in local ENU, trajectory_utm.txt and trajectory_wgs84.txt");
+  cmd->add_option("--gnss-topic", opt->gnss_topic,
+                  "Bags: the sensor_msgs/NavSatFix topic of the fixes (epochs without a fix skipped; sigmas from the "
+                  "covariance)");
   auto bin_fields = std::make_shared<std::string>("xyzi");
   cmd->add_option("--bin-fields", *bin_fields, "Layout of .bin scans: xyzi (KITTI) or xyz")->capture_default_str();
   cmd->add_option("--initial-trajectory", opt->initial_trajectory, "KITTI or TUM poses to use instead of the built-in odometry");

@@ -319,7 +319,8 @@ Input open_input(const MapRunOptions& o) {
                         .deskew_from_azimuth = pc.deskew_from_azimuth,
                         .elevation_calibration = pc.elevation_calibration,
                         .estimate_elevation_frames = o.config.calibration.estimate_elevation ? o.config.calibration.frames : 0,
-                        .gnss_file = o.gnss_file};
+                        .gnss_file = o.gnss_file,
+                        .gnss_topic = o.gnss_topic};
   if (is_bag_path(o.input)) {
     if (o.start_time < 0 || o.duration < 0) throw Error("--start-time and --duration must be >= 0");
     if (!o.times_file.empty()) throw Error("--times applies to folders of scans, not to the bag " + o.input);

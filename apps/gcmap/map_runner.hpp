@@ -16,6 +16,7 @@ struct MapRunOptions {
   std::string topic;                        // bags: the point-cloud topic (empty: the only one)
   std::string times_file;                   // folders: --times, the stamps file (empty: looked for beside the scans)
   std::string gnss_file;                    // --gnss: GNSS fixes (empty: gnss.txt beside the scans, if any)
+  std::string gnss_topic;                   // --gnss-topic: a bag's NavSatFix topic (empty: its only one, if any)
   BinFields bin_fields = BinFields::xyzi;   // folders: layout of .bin scans
   double start_time = 0.0, duration = 0.0;  // bags: s after the first message; duration 0: to the end
   Device device = Device::automatic;

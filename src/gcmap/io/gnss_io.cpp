@@ -1,8 +1,10 @@
 #include "gcmap/io/gnss_io.hpp"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <sstream>
 
 #include "gcmap/core/error.hpp"
@@ -43,6 +45,19 @@ GnssFix parse_line(const std::string& line, const std::string& where) {
   return f;
 }
 
+// sigma_east, sigma_north, sigma_up from the diagonal; none when the driver gave no usable covariance.
+std::optional<Eigen::Vector3d> covariance_sigma(const NavSatFixMsg& m) {
+  if (m.covariance_type == NavSatCovariance::unknown) return std::nullopt;
+  const Eigen::Vector3d var(m.position_covariance[0], m.position_covariance[4], m.position_covariance[8]);
+  if (!(var.minCoeff() > 0.0) || !var.allFinite()) return std::nullopt;
+  return var.cwiseSqrt();
+}
+
+bool has_fix(const NavSatFixMsg& m) {
+  return int(m.status) >= int(NavSatStatus::fix) && std::isfinite(m.latitude) && std::isfinite(m.longitude) &&
+         std::isfinite(m.altitude);
+}
+
 // Unit quaternion as "qx qy qz qw".
 void print_quaternion(char* buf, size_t size, const Eigen::Matrix3d& R) {
   const Eigen::Quaterniond q(R);
@@ -51,8 +66,10 @@ void print_quaternion(char* buf, size_t size, const Eigen::Matrix3d& R) {
 
 }  // namespace
 
-std::vector<GnssFix> read_gnss_txt(const std::string& path) {
-  std::istringstream in(read_file(path));
+std::vector<GnssFix> read_gnss_txt(const std::string& path) { return parse_gnss_txt(read_file(path), path); }
+
+std::vector<GnssFix> parse_gnss_txt(std::string_view text, const std::string& path) {
+  std::istringstream in{std::string(text)};
   std::vector<GnssFix> fixes;
   std::string line;
   for (int number = 1; std::getline(in, line); ++number) {
@@ -65,6 +82,57 @@ std::vector<GnssFix> read_gnss_txt(const std::string& path) {
   }
   if (fixes.empty()) throw Error(path + ": no GNSS fixes (expected lines of: " + kFields + ")");
   return fixes;
+}
+
+std::string GnssTopic::describe(const std::string& source, const Eigen::Vector3d& fallback_sigma) const {
+  char buf[384];
+  std::snprintf(buf, sizeof(buf), "%zu fixes from %s; %zu epochs without a fix skipped", fixes.size(), source.c_str(), no_fix);
+  std::string s = buf;
+  if (unknown_covariance > 0) {
+    std::snprintf(buf, sizeof(buf), "; %zu fixes without a covariance taken at sigma %.2g m east, %.2g m north, %.2g m up",
+                  unknown_covariance, fallback_sigma.x(), fallback_sigma.y(), fallback_sigma.z());
+    s += buf;
+  }
+  if (duplicates > 0) s += "; " + std::to_string(duplicates) + " repeated stamps dropped";
+  return s;
+}
+
+std::vector<std::string> gnss_topics(const BagReader& bag) {
+  std::vector<std::string> names;
+  for (const BagTopic& t : bag.topics())
+    if (is_navsatfix_type(t.type)) names.push_back(t.name);
+  return names;
+}
+
+GnssTopic read_bag_gnss(BagReader& bag, const std::string& topic, const Eigen::Vector3d& fallback_sigma) {
+  const BagTopic& t = bag.topic(topic);
+  const std::string where = bag.path() + ": topic " + topic;
+  if (!is_navsatfix_type(t.type)) throw Error(where + " is " + t.type + ", not sensor_msgs/NavSatFix");
+  GnssTopic out;
+  auto cursor = bag.read(topic);
+  BagMessage msg;
+  while (cursor->next(msg)) {
+    const std::string at = where + ", message at " + std::to_string(msg.time_ns) + " ns";
+    const NavSatFixMsg m = decode_navsatfix(msg.data, t.encoding, at);
+    if (!has_fix(m)) {
+      ++out.no_fix;
+      continue;
+    }
+    const std::optional<Eigen::Vector3d> sigma = covariance_sigma(m);
+    if (!sigma) ++out.unknown_covariance;
+    GnssFix f{double(m.stamp_ns) * 1e-9, {m.latitude, m.longitude, m.altitude}, sigma.value_or(fallback_sigma)};
+    check_ranges(f, at);
+    out.fixes.push_back(f);
+  }
+  if (out.fixes.empty()) throw Error(where + ": no message with a fix (" + std::to_string(out.no_fix) + " without)");
+  // Record order is not stamp order where drivers buffer.
+  std::stable_sort(out.fixes.begin(), out.fixes.end(), [](const GnssFix& a, const GnssFix& b) { return a.stamp < b.stamp; });
+  const size_t before = out.fixes.size();
+  out.fixes.erase(
+      std::unique(out.fixes.begin(), out.fixes.end(), [](const GnssFix& a, const GnssFix& b) { return a.stamp == b.stamp; }),
+      out.fixes.end());
+  out.duplicates = before - out.fixes.size();
+  return out;
 }
 
 void write_gnss_txt(const std::string& path, const std::vector<GnssFix>& fixes) {

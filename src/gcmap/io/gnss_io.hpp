@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "gcmap/io/bag_reader.hpp"
 #include "gcmap/io/geo.hpp"
 
 namespace gcmap {
@@ -21,8 +22,27 @@ struct GnssFix {
 // Throws Error("PATH:LINE: ...") for a malformed line, a value out of range (latitude beyond +-90,
 // longitude beyond +-180, a sigma not > 0), a stamp not after the line before, or a file without fixes.
 std::vector<GnssFix> read_gnss_txt(const std::string& path);
+// The same from text in memory; `name` stands for the file in errors.
+std::vector<GnssFix> parse_gnss_txt(std::string_view text, const std::string& name);
 // Full precision, with a header comment; written to a temporary name and renamed.
 void write_gnss_txt(const std::string& path, const std::vector<GnssFix>& fixes);
+
+// The fixes of a sensor_msgs/NavSatFix topic, by header stamp (stamps on the scans' clock).
+struct GnssTopic {
+  std::vector<GnssFix> fixes;
+  size_t no_fix = 0;              // epochs skipped: status NO_FIX (or unknown), or a position that is not finite
+  size_t unknown_covariance = 0;  // fixes given the fallback sigmas: covariance type unknown, or not positive
+  size_t duplicates = 0;          // dropped for repeating the stamp before them
+  // One line saying what was read, skipped and assumed, for the log and stats.json.
+  std::string describe(const std::string& source, const Eigen::Vector3d& fallback_sigma) const;
+};
+
+// The topics of sensor_msgs/NavSatFix type.
+std::vector<std::string> gnss_topics(const BagReader& bag);
+// Sigmas (east, north, up) from the covariance's diagonal; `fallback_sigma` where the driver gave
+// none. Throws Error naming the bag, topic and message for an undecodable message or a latitude or
+// longitude out of range, and naming the topic when it is not NavSatFix or has no fix at all.
+GnssTopic read_bag_gnss(BagReader& bag, const std::string& topic, const Eigen::Vector3d& fallback_sigma);
 
 // A fix's position in the local ENU frame at `origin`.
 Eigen::Vector3d enu_from_geodetic(const Geodetic& origin, const Geodetic& g);

@@ -227,25 +227,10 @@ void decide_bag(InputAssumptions& a, const InputOptions& o) {
   decide_kitti(a, o, nullptr);
 }
 
-// gnss.txt: --gnss, else beside the scans as times.txt is (bags: beside the bag).
-void decide_gnss(InputAssumptions& a, const InputOptions& o) {
-  std::vector<fs::path> candidates;
-  if (!o.gnss_file.empty()) {
-    if (!present(o.gnss_file)) throw Error(o.gnss_file + ": --gnss: no such file");
-    a.gnss_path = o.gnss_file;
-  } else if (a.layout == InputLayout::bag) {
-    candidates = {clean(a.input).parent_path() / "gnss.txt"};
-  } else {
-    candidates = {fs::path(a.root) / "gnss.txt", fs::path(a.scans_dir) / "gnss.txt",
-                  fs::path(a.scans_dir).parent_path() / "gnss.txt"};
-  }
-  for (const fs::path& p : candidates)
-    if (a.gnss_path.empty() && present(p)) a.gnss_path = clean(p).string();
-  if (a.gnss_path.empty()) {
-    a.gnss = {"none", "no gnss.txt beside the scans and no --gnss"};
-    return;
-  }
-  a.gnss_fixes = read_gnss_txt(a.gnss_path);
+// Sigmas for a NavSatFix without a covariance: a single-point receiver's.
+const Eigen::Vector3d kNavSatFallbackSigma(3.0, 3.0, 5.0);
+
+void state_gnss(InputAssumptions& a, const std::string& evidence) {
   const GnssFix& first = a.gnss_fixes.front();
   char origin[128];
   std::snprintf(origin, sizeof(origin), "%.8f, %.8f, %.3f m", first.position.lat_deg, first.position.lon_deg,
@@ -254,7 +239,69 @@ void decide_gnss(InputAssumptions& a, const InputOptions& o) {
                 "ENU (x east, y north, z up) at the first fix (" + origin +
                 ") once the fixes span gnss.align_distance (yaw fitted; the first scan taken as level until the fixes " +
                 "correct roll and pitch)",
-            a.gnss_path + (o.gnss_file.empty() ? ", found beside the scans" : ", --gnss")};
+            evidence};
+}
+
+void read_gnss_topic(InputAssumptions& a, BagReader& bag, const std::string& topic, const std::string& how) {
+  const GnssTopic t = read_bag_gnss(bag, topic, kNavSatFallbackSigma);
+  a.gnss_fixes = t.fixes;
+  a.gnss_path = bag.path() + ": topic " + topic;
+  state_gnss(a, t.describe(a.gnss_path, kNavSatFallbackSigma) + ", " + how);
+  if (t.unknown_covariance > 0)
+    a.warnings.push_back(topic + ": " + std::to_string(t.unknown_covariance) +
+                         " fixes carry no covariance; their sigmas are assumed (see the gnss line)");
+}
+
+// A bag's NavSatFix topic: --gnss-topic, else its only one.
+bool decide_bag_gnss(InputAssumptions& a, const InputOptions& o) {
+  const QuietLog quiet;
+  const std::unique_ptr<BagReader> bag = open_bag(a.input);
+  if (!o.gnss_topic.empty()) {
+    read_gnss_topic(a, *bag, o.gnss_topic, "--gnss-topic");
+    return true;
+  }
+  const std::vector<std::string> topics = gnss_topics(*bag);
+  if (topics.size() == 1) read_gnss_topic(a, *bag, topics.front(), "the bag's only sensor_msgs/NavSatFix topic");
+  if (topics.size() > 1) {
+    std::string names;
+    for (const std::string& t : topics) names += (names.empty() ? "" : ", ") + t;
+    a.gnss = {"none", "the bag has " + std::to_string(topics.size()) + " NavSatFix topics (" + names +
+                          "): choose one with --gnss-topic"};
+    a.warnings.push_back("GNSS not used: " + a.gnss.evidence);
+  }
+  return !topics.empty();
+}
+
+// --gnss, else --gnss-topic, else gnss.txt beside the scans as times.txt is (bags: beside the bag),
+// else a bag's only NavSatFix topic.
+void decide_gnss(InputAssumptions& a, const InputOptions& o) {
+  const bool bag = a.layout == InputLayout::bag;
+  if (!o.gnss_topic.empty() && (!bag || !o.gnss_file.empty()))
+    throw Error("--gnss-topic: " + std::string(bag ? "give --gnss or --gnss-topic, not both" : "the input is not a bag"));
+  if (!o.gnss_topic.empty()) {
+    decide_bag_gnss(a, o);
+    return;
+  }
+  std::vector<fs::path> candidates;
+  if (!o.gnss_file.empty()) {
+    if (!present(o.gnss_file)) throw Error(o.gnss_file + ": --gnss: no such file");
+    a.gnss_path = o.gnss_file;
+  } else if (bag) {
+    candidates = {clean(a.input).parent_path() / "gnss.txt"};
+  } else {
+    candidates = {fs::path(a.root) / "gnss.txt", fs::path(a.scans_dir) / "gnss.txt",
+                  fs::path(a.scans_dir).parent_path() / "gnss.txt"};
+  }
+  for (const fs::path& p : candidates)
+    if (a.gnss_path.empty() && present(p)) a.gnss_path = clean(p).string();
+  if (a.gnss_path.empty()) {
+    if (bag && decide_bag_gnss(a, o)) return;
+    a.gnss = {"none", bag ? "no NavSatFix topic in the bag, no gnss.txt beside it and no --gnss"
+                          : "no gnss.txt beside the scans and no --gnss"};
+    return;
+  }
+  a.gnss_fixes = read_gnss_txt(a.gnss_path);
+  state_gnss(a, a.gnss_path + (o.gnss_file.empty() ? ", found beside the scans" : ", --gnss"));
 }
 
 }  // namespace

@@ -28,6 +28,7 @@ struct InputOptions {
   std::string elevation_calibration;      // preprocess.elevation_calibration
   int estimate_elevation_frames = 0;      // calibration.frames when calibration.estimate_elevation, else 0
   std::string gnss_file;                  // --gnss: the fixes file, instead of gnss.txt beside the scans
+  std::string gnss_topic;                 // --gnss-topic: a bag's NavSatFix topic (default: its only one)
 };
 
 // One assumption: what is assumed and why, in words.
@@ -49,7 +50,7 @@ struct InputAssumptions {
   double assumed_rate_hz = 10.0;
   bool point_times = false;  // the scans carry per-point times
   bool kitti_correction = false;
-  std::string gnss_path;            // gnss.txt or --gnss; empty: no GNSS
+  std::string gnss_path;            // gnss.txt, --gnss, or "BAG: topic T"; empty: no GNSS
   std::vector<GnssFix> gnss_fixes;  // as read (io/gnss_io.hpp)
   Assumed layout_text, stamps_text, point_times_text, deskew, elevation_correction, beam_calibration, labels, gnss;
   std::vector<std::string> warnings;  // stated in the first lines and in stats.json
@@ -66,8 +67,9 @@ struct InputAssumptions {
 // file whose count does not match the scans, a line that is not a number, or a stamp before the
 // previous one. KITTI's 0.22 deg elevation correction only with all of KITTI's evidence (see
 // kitti_evidence in the .cpp). Reads the first scan (sensor evidence, per-point times). GNSS:
-// options.gnss_file, else gnss.txt where times.txt is looked for (bags: beside the bag); read
-// whole (Error("PATH:LINE: ...") for a bad line).
+// options.gnss_file, else a bag's options.gnss_topic, else gnss.txt where times.txt is looked for
+// (bags: beside the bag), else a bag's only sensor_msgs/NavSatFix topic; read whole
+// (Error("PATH:LINE: ...") for a bad line, Error naming the bag for a bad message).
 InputAssumptions decide_input(const std::string& input, const InputOptions& options);
 
 }  // namespace gcmap

@@ -218,6 +218,35 @@ std::string encode_imu(const ImuMsg& m, MessageEncoding enc) {
   return s.take();
 }
 
+NavSatFixMsg decode_navsatfix(std::string_view msg, MessageEncoding enc, std::string_view where) {
+  Deserializer d(msg, enc, where);
+  NavSatFixMsg m;
+  m.stamp_ns = d.header_stamp(m.frame_id);
+  m.status = NavSatStatus(d.num<int8_t>());
+  m.service = d.num<uint16_t>();
+  m.latitude = d.num<double>();
+  m.longitude = d.num<double>();
+  m.altitude = d.num<double>();
+  for (double& c : m.position_covariance) c = d.num<double>();
+  m.covariance_type = NavSatCovariance(d.num<uint8_t>());
+  return m;
+}
+
+std::string encode_navsatfix(const NavSatFixMsg& m, MessageEncoding enc) {
+  Serializer s(enc, false);
+  s.header(m.stamp_ns, m.frame_id);
+  s.num<int8_t>(int8_t(m.status));
+  s.num<uint16_t>(m.service);
+  s.num<double>(m.latitude);
+  s.num<double>(m.longitude);
+  s.num<double>(m.altitude);
+  for (double c : m.position_covariance) s.num<double>(c);
+  s.num<uint8_t>(uint8_t(m.covariance_type));
+  return s.take();
+}
+
+bool is_navsatfix_type(std::string_view type) { return type == "sensor_msgs/NavSatFix" || type == "sensor_msgs/msg/NavSatFix"; }
+
 bool is_imu_type(std::string_view type) { return type == "sensor_msgs/Imu" || type == "sensor_msgs/msg/Imu"; }
 
 bool is_pointcloud2_type(std::string_view type) {
@@ -262,6 +291,14 @@ std::string message_definition(std::string_view type) {
            "geometry_msgs/Vector3 linear_acceleration\nfloat64[9] linear_acceleration_covariance\n" +
            header_definition(ros2) + kRule + "MSG: geometry_msgs/Quaternion\nfloat64 x\nfloat64 y\nfloat64 z\nfloat64 w\n" +
            kRule + "MSG: geometry_msgs/Vector3\nfloat64 x\nfloat64 y\nfloat64 z\n";
+  if (is_navsatfix_type(type))
+    return "std_msgs/Header header\nsensor_msgs/NavSatStatus status\nfloat64 latitude\nfloat64 longitude\nfloat64 altitude\n"
+           "float64[9] position_covariance\nuint8 COVARIANCE_TYPE_UNKNOWN=0\nuint8 COVARIANCE_TYPE_APPROXIMATED=1\n"
+           "uint8 COVARIANCE_TYPE_DIAGONAL_KNOWN=2\nuint8 COVARIANCE_TYPE_KNOWN=3\nuint8 position_covariance_type\n" +
+           header_definition(ros2) + kRule +
+           "MSG: sensor_msgs/NavSatStatus\nint8 STATUS_NO_FIX=-1\nint8 STATUS_FIX=0\nint8 STATUS_SBAS_FIX=1\n"
+           "int8 STATUS_GBAS_FIX=2\nint8 status\nuint16 SERVICE_GPS=1\nuint16 SERVICE_GLONASS=2\nuint16 SERVICE_COMPASS=4\n"
+           "uint16 SERVICE_GALILEO=8\nuint16 service\n";
   return "";
 }
 
@@ -270,6 +307,7 @@ std::string message_md5(std::string_view type) {
   if (is_pointcloud2_type(type)) return "1158d486dd51d683ce2f1be655c3c181";
   if (is_livox_type(type)) return "e4d6829bdfe657cb6c21a746c86b21a6";
   if (is_imu_type(type)) return "6a62c6daae103f4ff57a132d6f95cec2";
+  if (is_navsatfix_type(type)) return "2d3a8cd499b9b4a0249fb98fd05cfa48";
   return "*";
 }
 

@@ -76,10 +76,28 @@ struct ImuMsg {
 ImuMsg decode_imu(std::string_view msg, MessageEncoding enc, std::string_view where);
 std::string encode_imu(const ImuMsg& m, MessageEncoding enc);
 
+// sensor_msgs/NavSatFix. The covariance is in the local ENU frame at the fix (east, north, up),
+// row major, m^2, as the message defines it.
+enum class NavSatStatus : int8_t { unknown = -2, no_fix = -1, fix = 0, sbas_fix = 1, gbas_fix = 2 };
+enum class NavSatCovariance : uint8_t { unknown = 0, approximated = 1, diagonal_known = 2, known = 3 };
+struct NavSatFixMsg {
+  int64_t stamp_ns = 0;  // header stamp
+  std::string frame_id;
+  NavSatStatus status = NavSatStatus::fix;
+  uint16_t service = 1;                              // GPS
+  double latitude = 0, longitude = 0, altitude = 0;  // deg, deg, m above the ellipsoid
+  std::array<double, 9> position_covariance{};
+  NavSatCovariance covariance_type = NavSatCovariance::unknown;
+};
+
+NavSatFixMsg decode_navsatfix(std::string_view msg, MessageEncoding enc, std::string_view where);
+std::string encode_navsatfix(const NavSatFixMsg& m, MessageEncoding enc);
+
 // Message types as the bags name them (ROS 1 "pkg/Type", ROS 2 "pkg/msg/Type").
 bool is_pointcloud2_type(std::string_view type);
 bool is_livox_type(std::string_view type);
 bool is_imu_type(std::string_view type);
+bool is_navsatfix_type(std::string_view type);
 // The .msg text (ROS 1 or ROS 2 dependencies, by the spelling of `type`) and the ROS 1 md5sum the
 // writers store with a topic of these types.
 std::string message_definition(std::string_view type);

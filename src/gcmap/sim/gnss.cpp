@@ -86,10 +86,12 @@ SimulatedGnss simulate_gnss(const Simulator& sim, const GnssSimConfig& c, uint64
     if (outlier) e += multipath(error.rng());
     if (c.outage && t >= c.outage->first && t < c.outage->second) {
       ++out.in_outage;
+      out.no_fix_stamps.push_back(t);
       continue;
     }
     if (sky_blocked(sim.world(), antenna)) {
       ++out.blocked;
+      out.no_fix_stamps.push_back(t);
       continue;
     }
     out.outliers += outlier;

@@ -38,6 +38,7 @@ struct GnssSimConfig {
 struct SimulatedGnss {
   std::vector<GnssFix> fixes;
   std::vector<Eigen::Vector3d> truth_enu;  // per fix: the antenna's true position
+  std::vector<double> no_fix_stamps;       // epochs in the outage or under a roof: a receiver reports NO_FIX
   size_t outliers = 0, blocked = 0, in_outage = 0;
 };
 

@@ -5,9 +5,11 @@
 #include <tbb/parallel_for.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/timer.hpp"
@@ -85,6 +87,18 @@ void check_mistake(const Simulator& sim, const OutputOptions& out) {
     throw Error("--time-mistake: other than zero, it needs a float time: the KITTI layout or --time-field velodyne");
 }
 
+NavSatFixMsg navsatfix(const GnssFix& f, GnssQuality quality) {
+  NavSatFixMsg m;
+  m.stamp_ns = std::llround(f.stamp * 1e9);
+  m.status = quality == GnssQuality::single_point ? NavSatStatus::fix : NavSatStatus::gbas_fix;
+  m.latitude = f.position.lat_deg;
+  m.longitude = f.position.lon_deg;
+  m.altitude = f.position.alt_m;
+  for (int a = 0; a < 3; ++a) m.position_covariance[4 * a] = f.sigma_enu[a] * f.sigma_enu[a];
+  m.covariance_type = NavSatCovariance::diagonal_known;
+  return m;
+}
+
 // Where the frames go: the KITTI layout, or the bag with the labels beside it.
 class FrameSink {
  public:
@@ -127,6 +141,25 @@ class FrameSink {
       m.angular_velocity = {s.gyro.x(), s.gyro.y(), s.gyro.z()};
       m.linear_acceleration = {a.x(), a.y(), a.z()};
       bag_->writer().write(topic, m.stamp_ns, encode_imu(m, bag_->encoding()));
+    }
+  }
+  // The /gnss topic (sensor_msgs/NavSatFix) as a driver publishes it: NO_FIX epochs included.
+  void write_gnss(const SimulatedGnss& gnss, GnssQuality quality) {
+    if (!bag_) return;
+    const uint32_t topic = bag_->writer().add_topic("/gnss", "sensor_msgs/msg/NavSatFix");
+    std::vector<NavSatFixMsg> messages;
+    for (const GnssFix& f : gnss.fixes) messages.push_back(navsatfix(f, quality));
+    for (double t : gnss.no_fix_stamps) {
+      NavSatFixMsg m;
+      m.stamp_ns = std::llround(t * 1e9);
+      m.status = NavSatStatus::no_fix;
+      m.latitude = m.longitude = m.altitude = std::numeric_limits<double>::quiet_NaN();
+      messages.push_back(m);
+    }
+    std::sort(messages.begin(), messages.end(), [](const auto& a, const auto& b) { return a.stamp_ns < b.stamp_ns; });
+    for (NavSatFixMsg& m : messages) {
+      m.frame_id = "gnss";
+      bag_->writer().write(topic, m.stamp_ns, encode_navsatfix(m, bag_->encoding()));
     }
   }
   void write_with_mistake(size_t k, PointCloud c) {
@@ -184,10 +217,14 @@ Json imu_json(const ImuSimConfig& c, const OutputOptions& out) {
   return j;
 }
 
-Json gnss_json(const GnssSimConfig& c, const SimulatedGnss& g) {
+Json gnss_json(const GnssSimConfig& c, const SimulatedGnss& g, bool bag) {
   const GnssNoise n = gnss_noise(c.quality);
   Json j = Json::object();
   j["file"] = "gnss.txt: stamp lat lon alt (deg, deg, m ellipsoidal) sigma_east sigma_north sigma_up (m)";
+  if (bag)
+    j["topic"] =
+        "/gnss: sensor_msgs/NavSatFix, the fixes of gnss.txt (status GBAS_FIX, FIX for single point; diagonal "
+        "covariance) and a NO_FIX message at each epoch without a fix";
   j["rate_hz"] = c.rate;
   j["quality"] = to_string(c.quality);
   j["sigma_horizontal_m"] = n.sigma_horizontal;
@@ -280,7 +317,7 @@ void write_metadata(const fs::path& dir, const Simulator& sim, const SimulationC
     origin["alt_m"] = out.gnss->origin.alt_m;
     j["geodetic_origin"] = origin;
     j["world_frame"] = "poses_world.txt: local ENU at geodetic_origin (x east, y north, z up; WGS84, ellipsoidal height)";
-    j["gnss"] = gnss_json(*out.gnss, *gnss);
+    j["gnss"] = gnss_json(*out.gnss, *gnss, out.bag.has_value());
   }
   write_file_atomic((dir / "scenario.json").string(), [&](std::ostream& out) { out << j.dump() << "\n"; });
 }
@@ -380,6 +417,7 @@ size_t write_simulation(const std::string& dir_name, const SimulationConfig& con
   if (output.gnss) {
     gnss = simulate_gnss(sim, *output.gnss, config.seed);
     write_gnss_txt((dir / "gnss.txt").string(), gnss->fixes);
+    sink.write_gnss(*gnss, output.gnss->quality);
   }
   sink.close();
   write_metadata(dir, sim, config, output, total, gnss ? &*gnss : nullptr);
