@@ -3,7 +3,8 @@
 //   header MAJOR MINOR FORMAT RECORD_LENGTH COUNT MIN_X MIN_Y MIN_Z MAX_X MAX_Y MAX_Z
 //   software TEXT
 //   wkt TEXT
-//   point X Y Z INTENSITY RETURN RETURNS CLASS SOURCE_ID GPS_TIME   (one line per point)
+//   point X Y Z INTENSITY RETURN RETURNS CLASS SOURCE_ID GPS_TIME [RED GREEN BLUE]   (a line per point;
+//   the colour in point format 7)
 // Usage: NODE_PATH=DIR/node_modules node las_read_copc.js FILE
 const fs = require('fs');
 const { Las } = require('copc');
@@ -24,6 +25,7 @@ out.push('wkt ' + wkt);
 const data = buf.slice(h.pointDataOffset, h.pointDataOffset + h.pointCount * h.pointDataRecordLength);
 const view = Las.View.create(data, h);
 const names = ['X', 'Y', 'Z', 'Intensity', 'ReturnNumber', 'NumberOfReturns', 'Classification', 'PointSourceId', 'GpsTime'];
+if (h.pointDataRecordFormat === 7) names.push('Red', 'Green', 'Blue');
 const get = names.map((n) => view.getter(n));
 for (let i = 0; i < view.pointCount; ++i) out.push('point ' + get.map((g) => g(i)).join(' '));
 process.stdout.write(out.join('\n') + '\n');

@@ -10,8 +10,9 @@
 namespace gcmap {
 namespace {
 
-// Every channel filled, around a UTM-sized offset so that float coordinates would lose the mm.
-LasCloud sample_las(size_t n) {
+// Every channel filled, around a UTM-sized offset so that float coordinates would lose the mm;
+// with `colors`, point format 7.
+LasCloud sample_las(size_t n, bool colors = false) {
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<double> u(-300.0, 300.0);
   LasCloud c;
@@ -21,6 +22,7 @@ LasCloud sample_las(size_t n) {
     c.gps_times.push_back(1.7e9 + 0.001 * i);
     c.classes.push_back(static_cast<uint8_t>(i % 23));
     c.point_source_ids.push_back(static_cast<uint16_t>(i / 100));
+    if (colors) c.colors.push_back({uint16_t(i * 65), uint16_t(65535 - i), uint16_t(i * 7919)});
   }
   return c;
 }
@@ -39,6 +41,7 @@ void expect_same_points(const LasCloud& written, const LasFile& read) {
     ASSERT_EQ(read.cloud.classes[i], written.classes[i]);
     ASSERT_EQ(read.cloud.point_source_ids[i], written.point_source_ids[i]);
   }
+  EXPECT_EQ(read.cloud.colors, written.colors);
 }
 
 TEST(Las, RoundTripKeepsPointsToTheMillimetreAndEveryAttribute) {
@@ -62,6 +65,24 @@ TEST(Las, RoundTripKeepsPointsToTheMillimetreAndEveryAttribute) {
     EXPECT_TRUE((p.array() <= f.header.max.array() + 1e-9).all());
   }
   EXPECT_EQ(std::filesystem::file_size(tmp / "a.las"), 375 + 54 + wkt.size() + 1 + 1000 * 30);
+}
+
+TEST(Las, ColoursMakePointFormat7AndRoundTrip) {
+  test::TempDir tmp;
+  const LasCloud c = sample_las(1000, true);
+  write_las(tmp / "rgb.las", c);
+  const LasFile f = read_las(tmp / "rgb.las");
+  expect_same_points(c, f);
+  EXPECT_EQ(f.header.point_format, 7);
+  EXPECT_EQ(f.header.record_length, 36);
+  EXPECT_EQ(std::filesystem::file_size(tmp / "rgb.las"), 375 + 1000 * 36);
+  // Tiles keep the colours of their points.
+  const std::vector<std::string> tiles = write_las_tiles(tmp.path.string(), "t", c, 400);
+  ASSERT_EQ(tiles.size(), 3u);
+  EXPECT_EQ(read_las(tiles[2]).cloud.colors.front(), c.colors[800]);
+  LasCloud odd = c;
+  odd.colors.pop_back();
+  EXPECT_THROW(write_las(tmp / "odd.las", odd), Error);
 }
 
 TEST(Las, WithoutCrsNoVlrAndEmptyChannelsReadAsZero) {
@@ -163,24 +184,8 @@ TEST(Las, BadInputNamesTheFileAndTheProblem) {
   EXPECT_FALSE(std::filesystem::exists(tmp / "odd.las"));
 }
 
-// copc (npm) as an independent reader: optional, never downloaded here. To run it:
-//   npm install --prefix /tmp/lasjs copc@0.0.8   (or GCMAP_LASJS=DIR for another prefix)
-TEST(Las, IndependentReaderAgrees) {
-  const char* env = std::getenv("GCMAP_LASJS");
-  const std::string prefix = env ? env : "/tmp/lasjs";
-  if (std::system("command -v node >/dev/null 2>&1") != 0)
-    GTEST_SKIP() << "node is not installed: skipping the independent LAS reader check";
-  if (!std::filesystem::exists(prefix + "/node_modules/copc"))
-    GTEST_SKIP() << prefix << "/node_modules/copc is absent: skipping the independent LAS reader check "
-                 << "(npm install --prefix /tmp/lasjs copc@0.0.8, or set GCMAP_LASJS)";
-  test::TempDir tmp;
-  const LasCloud c = sample_las(300);
-  const std::string wkt = "PROJCS[\"WGS 84 / UTM zone 32N\",AUTHORITY[\"EPSG\",\"32632\"]]";
-  write_las(tmp / "a.las", c, {wkt});
-  const std::string cmd = "NODE_PATH=" + prefix + "/node_modules node " GCMAP_SOURCE_DIR "/tests/las_read_copc.js " +
-                          (tmp / "a.las") + " > " + (tmp / "out") + " 2>&1";
-  ASSERT_EQ(std::system(cmd.c_str()), 0) << test::slurp(tmp / "out");
-  std::istringstream in(test::slurp(tmp / "out"));
+// What las_read_copc.js printed against what we wrote (`c`) and read back (`ours`).
+void expect_copc_agrees(std::istringstream& in, const LasCloud& c, const LasFile& ours, const std::string& wkt) {
   std::string tag, line;
   int major, minor, format, length;
   size_t count;
@@ -188,10 +193,9 @@ TEST(Las, IndependentReaderAgrees) {
   in >> tag >> major >> minor >> format >> length >> count >> lo.x() >> lo.y() >> lo.z() >> hi.x() >> hi.y() >> hi.z();
   EXPECT_EQ(tag, "header");
   EXPECT_EQ(major * 10 + minor, 14);
-  EXPECT_EQ(format, 6);
-  EXPECT_EQ(length, 30);
+  EXPECT_EQ(format, c.colors.empty() ? 6 : 7);
+  EXPECT_EQ(length, c.colors.empty() ? 30 : 36);
   ASSERT_EQ(count, c.size());
-  const LasFile ours = read_las(tmp / "a.las");
   EXPECT_EQ(lo, ours.header.min);
   EXPECT_EQ(hi, ours.header.max);
   std::getline(in >> std::ws, line);
@@ -212,6 +216,34 @@ TEST(Las, IndependentReaderAgrees) {
     EXPECT_EQ(cls, c.classes[i]);
     EXPECT_EQ(source, c.point_source_ids[i]);
     EXPECT_EQ(t, c.gps_times[i]);
+    if (c.colors.empty()) continue;
+    int rgb[3];
+    ASSERT_TRUE(in >> rgb[0] >> rgb[1] >> rgb[2]) << "point " << i;
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(rgb[k], c.colors[i][k]);
+  }
+}
+
+// copc (npm) as an independent reader: optional, never downloaded here. To run it:
+//   npm install --prefix /tmp/lasjs copc@0.0.8   (or GCMAP_LASJS=DIR for another prefix)
+TEST(Las, IndependentReaderAgrees) {
+  const char* env = std::getenv("GCMAP_LASJS");
+  const std::string prefix = env ? env : "/tmp/lasjs";
+  if (std::system("command -v node >/dev/null 2>&1") != 0)
+    GTEST_SKIP() << "node is not installed: skipping the independent LAS reader check";
+  if (!std::filesystem::exists(prefix + "/node_modules/copc"))
+    GTEST_SKIP() << prefix << "/node_modules/copc is absent: skipping the independent LAS reader check "
+                 << "(npm install --prefix /tmp/lasjs copc@0.0.8, or set GCMAP_LASJS)";
+  for (const bool colors : {false, true}) {
+    SCOPED_TRACE(colors ? "format 7" : "format 6");
+    test::TempDir tmp;
+    const LasCloud c = sample_las(300, colors);
+    const std::string wkt = "PROJCS[\"WGS 84 / UTM zone 32N\",AUTHORITY[\"EPSG\",\"32632\"]]";
+    write_las(tmp / "a.las", c, {wkt});
+    const std::string cmd = "NODE_PATH=" + prefix + "/node_modules node " GCMAP_SOURCE_DIR "/tests/las_read_copc.js " +
+                            (tmp / "a.las") + " > " + (tmp / "out") + " 2>&1";
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << test::slurp(tmp / "out");
+    std::istringstream in(test::slurp(tmp / "out"));
+    expect_copc_agrees(in, c, read_las(tmp / "a.las"), wkt);
   }
 }
 

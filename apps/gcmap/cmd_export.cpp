@@ -1,6 +1,7 @@
 // gcmap export: the map of a gcmap map output folder as LAS 1.4, PLY or PCD, georeferenced when
 // the geodetic origin of the map frame is given.
 #include <spdlog/spdlog.h>
+#include <yaml-cpp/yaml.h>
 
 #include <atomic>
 #include <cstdio>
@@ -20,6 +21,7 @@
 #include "gcmap/io/trajectory_io.hpp"
 #include "gcmap/mapping/mapper.hpp"
 #include "gcmap/session/session.hpp"
+#include "gcmap/viz/render.hpp"
 #include "progress.hpp"
 
 namespace gcmap::cli {
@@ -34,6 +36,7 @@ enum class ExportKind { map, grid, per_scan };
 
 struct ExportOptions {
   std::string input, output, format = "las", origin, crs, from = "auto", intensity = "auto";
+  std::string color;  // empty: no colour (LAS format 6); height, intensity or submap: format 7
   size_t max_points = 20'000'000;
   bool quiet = false;
   bool grid = false, per_scan = false;
@@ -45,6 +48,7 @@ struct ExportOptions {
 
 ExportKind export_kind(const ExportOptions& o) {
   if (o.grid && o.per_scan) throw Error("--grid and --per-scan: one export at a time");
+  if ((o.grid || o.per_scan) && !o.color.empty()) throw Error("--color: for the map's export, not --grid or --per-scan");
   return o.grid ? ExportKind::grid : o.per_scan ? ExportKind::per_scan : ExportKind::map;
 }
 
@@ -103,24 +107,50 @@ int trajectory_utm_epsg(int crs, const Geodetic& origin) {
 
 struct Georeference {
   Geodetic origin;
+  std::string origin_source;  // in words: --origin, or the run's GNSS
   Eigen::Isometry3d T_ecef_map;
   std::unique_ptr<CrsTransform> crs;  // of the points; null: local ENU
   std::unique_ptr<CrsTransform> utm;  // of the trajectory files
 };
 
+// The ENU origin of a run that GNSS georeferenced (OUT/stats.json "gnss"); none otherwise.
+std::optional<Geodetic> recorded_enu_origin(const std::string& out) {
+  const fs::path stats = fs::path(out) / "stats.json";
+  if (!fs::exists(stats)) return std::nullopt;
+  YAML::Node root;
+  try {
+    root = YAML::Load(read_file(stats.string()));
+  } catch (const YAML::Exception& e) { throw Error(stats.string() + ": not valid JSON (" + e.msg + ")"); }
+  const YAML::Node gnss = root["gnss"];
+  if (!gnss || !gnss["georeferenced"] || !gnss["georeferenced"].as<bool>(false)) return std::nullopt;
+  const YAML::Node o = gnss["enu_origin"];
+  if (!o || !o.IsSequence() || o.size() != 3) throw Error(stats.string() + ": gnss.enu_origin is not [lat, lon, alt]");
+  return Geodetic{o[0].as<double>(), o[1].as<double>(), o[2].as<double>()};
+}
+
+// --origin, else the run's own GNSS origin; none: the map frame, unreferenced.
 std::optional<Georeference> make_georeference(const ExportOptions& o) {
-  if (o.origin.empty()) {
+  const std::optional<Geodetic> recorded = o.origin.empty() ? recorded_enu_origin(o.input) : std::nullopt;
+  if (o.origin.empty() && !recorded) {
     if (!o.crs.empty()) throw Error("--crs: needs --origin (the geodetic origin of the map frame)");
     return std::nullopt;
   }
   Georeference g;
-  g.origin = parse_geodetic("--origin", o.origin);
+  g.origin = recorded ? *recorded : parse_geodetic("--origin", o.origin);
+  g.origin_source = recorded ? "the run's GNSS (stats.json gnss.enu_origin)" : "--origin";
   g.T_ecef_map = T_ecef_enu(g.origin);
   int code = o.crs.empty() ? -1 : parse_crs(o.crs);
   if (code == 0) code = utm_epsg(g.origin);
   if (code > 0) g.crs = std::make_unique<CrsTransform>(code);
   g.utm = std::make_unique<CrsTransform>(trajectory_utm_epsg(code, g.origin));
   return g;
+}
+
+std::string origin_line(const Georeference& g) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "%.9f, %.9f, %.3f", g.origin.lat_deg, g.origin.lon_deg, g.origin.alt_m);
+  return "origin: map frame origin at " + std::string(buf) + " from " + g.origin_source +
+         " (lat, lon in degrees, metres above the WGS84 ellipsoid), axes east, north, up";
 }
 
 std::vector<std::string> assumptions(const ExportOptions& o, const ExportMap& m, const std::optional<Georeference>& g,
@@ -134,15 +164,17 @@ std::vector<std::string> assumptions(const ExportOptions& o, const ExportMap& m,
   else
     a.push_back("coordinates: " + g->crs->name() + " (EPSG:" + std::to_string(g->crs->epsg()) +
                 "), heights above the WGS84 ellipsoid");
-  if (g)
-    a.push_back("origin: map frame origin at " + o.origin +
-                " (lat, lon in degrees, metres above the WGS84 ellipsoid), axes east, north, up");
+  if (g) a.push_back(origin_line(*g));
   if (parse_format(o.format) != ExportFormat::las) return a;
   if (!m.cloud.has_intensities()) a.push_back("intensity: none in the source, written as 0");
   else
     a.push_back(scaling == IntensityScaling::unit ? "intensity: values in [0, 1] scaled by 65535"
                                                   : "intensity: raw values rounded, clamped to [0, 65535]");
   a.push_back("gps time: 0 (map points are merged from many scans: no single scan stamp)");
+  a.push_back(o.color.empty() ? "colour: none (point format 6)"
+                              : "colour: by " + o.color + " (" +
+                                    (o.color == "submap" ? "one colour per submap" : "the 2-98 % range on a blue-to-red scale") +
+                                    "), point format 7");
   a.push_back("classification: 0, never classified (no labels in the map)");
   return a;
 }
@@ -158,9 +190,13 @@ void georeference(LasCloud& las, const std::optional<Georeference>& g) {
   g->crs->from_ecef(las.points);
 }
 
-LasCloud georeferenced_las(const ExportMap& m, const std::optional<Georeference>& g, IntensityScaling scaling) {
+LasCloud georeferenced_las(const ExportOptions& o, const ExportMap& m, const std::optional<Georeference>& g,
+                           IntensityScaling scaling) {
   LasCloud las = las_cloud(m.cloud, Eigen::Isometry3d::Identity(), scaling, 0, 0.0);
   if (!m.source_ids.empty()) las.point_source_ids = m.source_ids;
+  if (!o.color.empty())
+    for (const viz::Rgb& c : viz::point_colours(m.cloud, viz::parse_color_mode(o.color), m.source_ids))
+      las.colors.push_back({uint16_t(c.r * 257), uint16_t(c.g * 257), uint16_t(c.b * 257)});
   georeference(las, g);
   return las;
 }
@@ -171,7 +207,7 @@ std::vector<std::string> write_map(const ExportOptions& o, const ExportMap& m, c
   if (format == ExportFormat::ply) write_ply((fs::path(staging) / "map.ply").string(), m.cloud);
   if (format == ExportFormat::pcd) write_pcd((fs::path(staging) / "map.pcd").string(), m.cloud);
   if (format != ExportFormat::las) return {o.format == "ply" ? "map.ply" : "map.pcd"};
-  const LasCloud las = georeferenced_las(m, g, scaling);
+  const LasCloud las = georeferenced_las(o, m, g, scaling);
   LasWriteOptions w;
   if (g && g->crs) w.wkt = g->crs->wkt();
   std::vector<std::string> names;
@@ -346,6 +382,7 @@ std::vector<std::string> per_scan_assumptions(const ExportOptions& o, const std:
   if (!g) a.push_back("coordinates: the map frame (frame 0's sensor frame), no CRS");
   else if (!g->crs) a.push_back("coordinates: local ENU at the origin (map frame axes taken as east, north, up), no CRS");
   else a.push_back("coordinates: " + g->crs->name() + " (EPSG:" + std::to_string(g->crs->epsg()) + ")");
+  if (g) a.push_back(origin_line(*g));
   if (parse_format(o.format) == ExportFormat::las) {
     a.push_back("point source id: the frame index; gps time: the scan's stamp plus the point's time (the input's clock)");
     a.push_back(o.intensity == "auto" ? "intensity: unit or raw scaling decided per scan (values all in [0, 1]: unit)"
@@ -454,7 +491,12 @@ int run_export(const ExportOptions& o) {
   if (g && g->crs && format != ExportFormat::las)
     throw Error("--crs: needs --format las (PLY and PCD hold float32 coordinates: steps of 0.5 m at UTM northings)");
   if (!fs::is_directory(o.input)) throw Error(o.input + ": not a folder (give the output folder of gcmap map)");
+  if (!o.color.empty()) {
+    if (format != ExportFormat::las) throw Error("--color: LAS only (point format 7)");
+    viz::parse_color_mode(o.color);
+  }
   const ExportMap m = load_map(o.input, from);
+  if (o.color == "submap" && m.source_ids.empty()) throw Error("--color submap: " + m.path + " has no submaps (use the session)");
   const IntensityScaling scaling = intensity_scaling(o, m.cloud);
   const std::vector<std::string> assumed = assumptions(o, m, g, scaling);
   for (const std::string& line : assumed) spdlog::info("{}", line);
@@ -493,11 +535,14 @@ void add_export(CLI::App& app, Runner& run) {
   cmd->add_option("-o,--output", o->output, "Folder for the exported files")->required();
   cmd->add_option("--format", o->format, "las, ply or pcd")->capture_default_str();
   cmd->add_option("--origin", o->origin,
-                  "LAT,LON,ALT: WGS84 position of the map frame's origin, its axes taken as east, north, up");
+                  "LAT,LON,ALT: WGS84 position of the map frame's origin, its axes taken as east, north, up (default: the "
+                  "origin of a run that GNSS georeferenced, from its stats.json)");
   cmd->add_option("--crs", o->crs, "EPSG:NNNN or utm (the origin's zone): coordinates of the LAS points (needs --origin)");
   cmd->add_option("--from", o->from, "auto (session/ when present, else map.ply), session or map")->capture_default_str();
   cmd->add_option("--intensity", o->intensity, "auto, unit (x 65535) or raw (rounded): float intensity to LAS's uint16")
       ->capture_default_str();
+  cmd->add_option("--color", o->color,
+                  "height, intensity or submap: a colour per point for viewers that show RGB (LAS point format 7)");
   cmd->add_option("--max-points", o->max_points, "Points per LAS file: larger maps are tiled as map_000.las, map_001.las, ...")
       ->capture_default_str();
   cmd->add_flag("--grid", o->grid,

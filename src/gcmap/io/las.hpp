@@ -1,7 +1,7 @@
 #pragma once
-// LAS 1.4 point clouds (ASPRS LAS 1.4 R15), point data record format 6: what survey and GIS tools
-// read. Coordinates are doubles here (georeferenced values do not fit a float) and int32 on disk at
-// a fixed 1 mm scale with offsets from the bounds.
+// LAS 1.4 point clouds (ASPRS LAS 1.4 R15), point data record format 6, or 7 when the points have
+// colours: what survey and GIS tools read. Coordinates are doubles here (georeferenced values do
+// not fit a float) and int32 on disk at a fixed 1 mm scale with offsets from the bounds.
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
@@ -21,6 +21,7 @@ struct LasCloud {
   std::vector<double> gps_times;  // the input's clock (see LasWriteOptions::time_note)
   std::vector<uint8_t> classes;   // ASPRS classes
   std::vector<uint16_t> point_source_ids;
+  std::vector<std::array<uint16_t, 3>> colors;  // red, green, blue in 0..65535: format 7 when not empty
   size_t size() const { return points.size(); }
 };
 
@@ -64,15 +65,15 @@ struct LasWriteOptions {
   std::string system_identifier = "gcmap export";
 };
 
-// Writes `cloud` atomically as LAS 1.4 format 6. Throws Error("PATH: ...") when the extent does
-// not fit int32 steps of 1 mm or a channel has the wrong size.
+// Writes `cloud` atomically as LAS 1.4 format 6 (7 with colours). Throws Error("PATH: ...") when
+// the extent does not fit int32 steps of 1 mm or a channel has the wrong size.
 void write_las(const std::string& path, const LasCloud& cloud, const LasWriteOptions& options = {});
 // Splits into files of at most `max_points` (STEM_000.las, STEM_001.las, ... in point order; one
 // file STEM.las when it fits); returns the paths written.
 std::vector<std::string> write_las_tiles(const std::string& dir, const std::string& stem, const LasCloud& cloud,
                                          size_t max_points, const LasWriteOptions& options = {});
 
-// Reads LAS 1.4 point formats 6 and 7 (colour ignored); throws Error("PATH: ...") on anything
+// Reads LAS 1.4 point formats 6 and 7 (colours of format 7 in `colors`); throws Error("PATH: ...") on anything
 // malformed, truncated or of another version or format.
 LasFile read_las(const std::string& path);
 LasFile parse_las(const std::string& bytes, const std::string& name);

@@ -84,6 +84,7 @@ void decode(const char* r, const LasHeader& h, LasCloud& c, size_t i) {
   c.classes[i] = static_cast<uint8_t>(r[16]);
   std::memcpy(&c.point_source_ids[i], r + 20, 2);
   std::memcpy(&c.gps_times[i], r + 22, 8);
+  if (h.point_format == 7) std::memcpy(c.colors[i].data(), r + 30, 6);
 }
 
 }  // namespace
@@ -105,6 +106,7 @@ LasFile parse_las(const std::string& bytes, const std::string& name) {
   c.classes.resize(n);
   c.point_source_ids.resize(n);
   c.gps_times.resize(n);
+  if (f.header.point_format == 7) c.colors.resize(n);
   for (size_t i = 0; i < n; ++i) decode(bytes.data() + data_offset + i * length, f.header, c, i);
   return f;
 }

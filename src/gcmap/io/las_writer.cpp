@@ -15,7 +15,9 @@
 namespace gcmap {
 namespace {
 
-constexpr int kHeaderSize = 375, kVlrHeaderSize = 54, kRecordLength = 30;
+constexpr int kHeaderSize = 375, kVlrHeaderSize = 54;
+
+int record_length(const LasCloud& c) { return c.colors.empty() ? 30 : 36; }
 constexpr size_t kBlockPoints = 1 << 16;  // encoded in parallel, then written
 
 // SemanticKITTI class -> ASPRS class. ASPRS 0-22 are standard; 64 vehicle, 65 person (riders too),
@@ -89,7 +91,8 @@ int32_t step(double value, double offset) { return static_cast<int32_t>(std::llr
 
 void check_sizes(const LasCloud& c, const std::string& path) {
   const auto bad = [&](size_t n) { return n != 0 && n != c.size(); };
-  if (bad(c.intensities.size()) || bad(c.gps_times.size()) || bad(c.classes.size()) || bad(c.point_source_ids.size()))
+  if (bad(c.intensities.size()) || bad(c.gps_times.size()) || bad(c.classes.size()) || bad(c.point_source_ids.size()) ||
+      bad(c.colors.size()))
     throw Error(path + ": a LAS channel's size differs from the point count");
 }
 
@@ -99,6 +102,8 @@ LasHeader make_header(const LasCloud& c, const LasWriteOptions& o, const std::st
   h.system_identifier = o.system_identifier;
   h.generating_software = "gcmap " GCMAP_VERSION;
   h.wkt = o.wkt;
+  h.point_format = c.colors.empty() ? 6 : 7;
+  h.record_length = record_length(c);
   h.point_count = c.size();
   h.points_by_return[0] = c.size();
   if (c.size() == 0) return h;
@@ -117,23 +122,25 @@ LasHeader make_header(const LasCloud& c, const LasWriteOptions& o, const std::st
 }
 
 void encode(const LasCloud& c, const Eigen::Vector3d& offset, size_t i, char* r) {
-  std::memset(r, 0, kRecordLength);
+  std::memset(r, 0, record_length(c));
   for (int k = 0; k < 3; ++k) put<int32_t>(r + 4 * k, step(c.points[i][k], offset[k]));
   if (!c.intensities.empty()) put<uint16_t>(r + 12, c.intensities[i]);
   put<uint8_t>(r + 14, 0x11);  // return 1 of 1
   if (!c.classes.empty()) put<uint8_t>(r + 16, c.classes[i]);
   if (!c.point_source_ids.empty()) put<uint16_t>(r + 20, c.point_source_ids[i]);
   if (!c.gps_times.empty()) put<double>(r + 22, c.gps_times[i]);
+  for (int k = 0; k < 3 && !c.colors.empty(); ++k) put<uint16_t>(r + 30 + 2 * k, c.colors[i][k]);
 }
 
 void write_records(std::ostream& out, const LasCloud& c, const Eigen::Vector3d& offset) {
-  std::string block(std::min(c.size(), kBlockPoints) * kRecordLength, '\0');
+  const size_t length = record_length(c);
+  std::string block(std::min(c.size(), kBlockPoints) * length, '\0');
   for (size_t begin = 0; begin < c.size(); begin += kBlockPoints) {
     const size_t n = std::min(kBlockPoints, c.size() - begin);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 4096), [&](const tbb::blocked_range<size_t>& range) {
-      for (size_t i = range.begin(); i != range.end(); ++i) encode(c, offset, begin + i, &block[i * kRecordLength]);
+      for (size_t i = range.begin(); i != range.end(); ++i) encode(c, offset, begin + i, &block[i * length]);
     });
-    out.write(block.data(), n * kRecordLength);
+    out.write(block.data(), n * length);
   }
 }
 
@@ -141,7 +148,7 @@ LasCloud slice(const LasCloud& c, size_t begin, size_t end) {
   const auto part = [&](const auto& v) {
     return v.empty() ? std::decay_t<decltype(v)>{} : std::decay_t<decltype(v)>(v.begin() + begin, v.begin() + end);
   };
-  return {part(c.points), part(c.intensities), part(c.gps_times), part(c.classes), part(c.point_source_ids)};
+  return {part(c.points), part(c.intensities), part(c.gps_times), part(c.classes), part(c.point_source_ids), part(c.colors)};
 }
 
 }  // namespace
@@ -201,6 +208,7 @@ void append(LasCloud& to, const LasCloud& from) {
   join(to.gps_times, from.gps_times, 0.0);
   join(to.classes, from.classes, uint8_t{0});
   join(to.point_source_ids, from.point_source_ids, uint16_t{0});
+  join(to.colors, from.colors, std::array<uint16_t, 3>{});
   to.points.insert(to.points.end(), from.points.begin(), from.points.end());
 }
 

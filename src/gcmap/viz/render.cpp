@@ -182,6 +182,23 @@ Eigen::AlignedBox2d points_box(const PointCloud& map) {
 
 }  // namespace
 
+std::vector<Rgb> point_colours(const PointCloud& cloud, ColorMode mode, const std::vector<uint16_t>& submap_of) {
+  std::vector<Rgb> out(cloud.size());
+  if (mode == ColorMode::submap) {
+    if (submap_of.size() != cloud.size()) throw Error("colour by submap: the points' submaps are not known");
+    for (size_t i = 0; i < out.size(); ++i) out[i] = category_colour(submap_of[i]);
+    return out;
+  }
+  if (mode == ColorMode::intensity && !cloud.has_intensities()) throw Error("colour by intensity: the points have none");
+  std::vector<float> values(cloud.size());
+  for (size_t i = 0; i < values.size(); ++i)
+    values[i] = mode == ColorMode::intensity ? cloud.intensities[i] : cloud.points[i].z();
+  if (values.empty()) return out;
+  const auto [lo, hi] = robust_range(values);
+  tbb::parallel_for(size_t(0), out.size(), [&](size_t i) { out[i] = colormap((values[i] - lo) / (hi - lo)); });
+  return out;
+}
+
 ColorMode parse_color_mode(const std::string& name) {
   if (name == "height") return ColorMode::height;
   if (name == "intensity") return ColorMode::intensity;

@@ -14,6 +14,10 @@ namespace gcmap::viz {
 enum class ColorMode { height, intensity, submap };
 ColorMode parse_color_mode(const std::string& name);  // throws Error naming the value
 
+// A colour per point, for exports that carry one (LAS point format 7): height (z) or intensity
+// mapped over their 2-98 % range, or per submap (`submap_of`: the submap of each point).
+std::vector<Rgb> point_colours(const PointCloud& cloud, ColorMode mode, const std::vector<uint16_t>& submap_of);
+
 struct RenderOptions {
   ColorMode color = ColorMode::height;
   int size = 2000;    // pixels along the longer side
