@@ -104,13 +104,16 @@ OccupancyGrid build(const std::vector<Scene>& scenes, GridOptions o = {}) {
   return b.grid();
 }
 
+// A scene seen by the two scans a cell needs (GridOptions::min_scans).
+std::vector<Scene> twice(const Scene& s) { return {s, s}; }
+
 Occupancy at(const OccupancyGrid& g, double x, double y) {
   int cx, cy;
   return g.cell_of(x, y, cx, cy) ? g.at(cx, cy) : Occupancy::unknown;
 }
 
 TEST(OccupancyGrid, WallHitSpaceBeforeItFreeBehindItUnknown) {
-  const OccupancyGrid g = build({wall_scene({0.f, 0.f, 1.7f})});
+  const OccupancyGrid g = build(twice(wall_scene({0.f, 0.f, 1.7f})));
   for (float y = -2.5f; y <= 2.5f; y += 0.5f) {
     EXPECT_EQ(at(g, 5.05, y), Occupancy::occupied) << y;
     EXPECT_EQ(at(g, 4.75, y), Occupancy::free) << y;
@@ -128,7 +131,7 @@ TEST(OccupancyGrid, HeightIsAboveTheLocalGroundNotTheSensor) {
   // sensor, 1 m above the sensor's own ground: an obstacle in a band taken from the sensor's height.
   Scene s = wall_scene({0.f, 0.f, 1.7f});
   for (Eigen::Vector3f& p : s.ends) p.z() += 0.1f * p.y();
-  const OccupancyGrid g = build({s});
+  const OccupancyGrid g = build(twice(s));
   EXPECT_EQ(at(g, 0.0, 10.0), Occupancy::free);
   EXPECT_EQ(at(g, -3.0, 11.0), Occupancy::free);
   EXPECT_EQ(at(g, 5.05, 2.0), Occupancy::occupied);
@@ -142,12 +145,12 @@ TEST(OccupancyGrid, ReturnsAboveTheBandAreNoObstacles) {
   for (float x = -10.f; x <= 10.f; x += 0.1f)
     for (float y = -10.f; y <= 10.f; y += 0.1f) s.add({x, y, 0.f});
   for (float y = -1.f; y < 1.f; y += 0.05f) s.add({8.f, y, 2.5f});
-  const OccupancyGrid g = build({s});
+  const OccupancyGrid g = build(twice(s));
   EXPECT_EQ(g.count(Occupancy::occupied), 0u);
   EXPECT_EQ(at(g, 8.05, 0.0), Occupancy::free);
   GridOptions o;
   o.height_max = 3.0f;  // a band that holds it
-  EXPECT_EQ(at(build({s}, o), 8.05, 0.0), Occupancy::occupied);
+  EXPECT_EQ(at(build(twice(s), o), 8.05, 0.0), Occupancy::occupied);
 }
 
 TEST(OccupancyGrid, SomethingThatMovedAwayIsFree) {
@@ -155,13 +158,36 @@ TEST(OccupancyGrid, SomethingThatMovedAwayIsFree) {
   Scene first = wall_scene({0.f, 0.f, 1.7f});
   for (float y = -1.f; y <= 1.f; y += 0.05f)
     for (float z = 0.3f; z < 1.5f; z += 0.1f) first.add({3.0f, y, z});
-  std::vector<Scene> scenes = {first};
-  for (int k = 0; k < 4; ++k) scenes.push_back(wall_scene({0.f, 0.f, 1.7f}));
+  std::vector<Scene> scenes = twice(first);
+  for (int k = 0; k < 8; ++k) scenes.push_back(wall_scene({0.f, 0.f, 1.7f}));
   const OccupancyGrid g = build(scenes);
   EXPECT_EQ(at(g, 3.05, 0.0), Occupancy::free);
   EXPECT_EQ(at(g, 5.05, 0.0), Occupancy::occupied);
-  // Seen by one scan only, the car is occupied (no evidence against it).
-  EXPECT_EQ(at(build({first}), 3.05, 0.0), Occupancy::occupied);
+  // Seen by these two scans only, the car is occupied (no evidence against it).
+  EXPECT_EQ(at(build(twice(first)), 3.05, 0.0), Occupancy::occupied);
+}
+
+TEST(OccupancyGrid, AStrayEchoBeyondTheGroundDoesNotSinkIt) {
+  // A ray that came back from 1 m below the ground (multipath): the lowest return of its column,
+  // but alone. Were it the ground, the street around it would read as 1 m high obstacles.
+  Scene s = wall_scene({0.f, 0.f, 1.7f});
+  s.add({-6.f, 2.f, -1.f});
+  const OccupancyGrid g = build(twice(s));
+  for (double x = -7.0; x <= -5.0; x += 0.5)
+    for (double y = 1.0; y <= 3.0; y += 0.5) EXPECT_EQ(at(g, x, y), Occupancy::free) << x << ", " << y;
+  EXPECT_LE(g.count(Occupancy::occupied), 130u);
+}
+
+TEST(OccupancyGrid, OneScansStrayRayThroughAWallIsNoEvidence) {
+  // One of the two scans has an echo from 4 m behind the wall, its ray through the wall: the cells
+  // behind it stay unknown, neither free nor an obstacle, and the wall stays occupied.
+  Scene stray = wall_scene({0.f, 0.f, 1.7f});
+  stray.add({9.f, 0.2f, 1.0f});
+  const OccupancyGrid g = build({stray, wall_scene({0.f, 0.f, 1.7f})});
+  EXPECT_EQ(at(g, 7.05, 0.15), Occupancy::unknown);
+  EXPECT_EQ(at(g, 9.05, 0.25), Occupancy::unknown);
+  EXPECT_EQ(at(g, 5.05, 0.0), Occupancy::occupied);
+  EXPECT_EQ(at(g, 4.75, 0.0), Occupancy::free);
 }
 
 TEST(OccupancyGrid, TooFineForTheAreaIsAnErrorNamingTheOption) {

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <utility>
 
 #include "gcmap/core/error.hpp"
 
@@ -15,7 +16,9 @@ namespace gcmap {
 namespace {
 
 constexpr float kNoGround = std::numeric_limits<float>::infinity();
-constexpr double kMaxCells = 1.5e9;  // 6 GB of counts
+constexpr double kMaxCells = 1.5e9;   // 6 GB of counts
+constexpr size_t kGroundSupport = 3;  // returns of one scan that make a column's ground
+constexpr float kGroundBand = 0.25f;  // m: within which they must lie
 
 void bump(uint16_t& count) {
   std::atomic_ref<uint16_t> a(count);
@@ -34,6 +37,7 @@ void lower_to(float& target, float z) {
 // window around the scan's origins, so that stale stamps of earlier scans never match.
 struct OccupancyGridBuilder::Scratch {
   std::vector<uint32_t> stamp;
+  std::vector<std::pair<uint32_t, float>> column_z;  // add_ground: (ground column, height) of a scan's returns
   int64_t wx0 = 0, wy0 = 0;
   int ww = 0, wh = 0;
   uint32_t scan = 0;
@@ -73,6 +77,8 @@ bool in_range(const Eigen::Vector3f& o, const Eigen::Vector3f& p, const GridOpti
 }  // namespace
 
 void OccupancyGridBuilder::add_ground(const RayBatch& b) {
+  Scratch& s = scratch_->threads.local();
+  s.column_z.clear();
   const double gx0 = x0_ * o_.resolution, gy0 = y0_ * o_.resolution;
   for (size_t i = 0; i < b.ends.size(); ++i) {
     const Eigen::Vector3f& p = b.ends[i];
@@ -80,7 +86,20 @@ void OccupancyGridBuilder::add_ground(const RayBatch& b) {
     const int gx = static_cast<int>(std::floor((p.x() - gx0) / o_.ground_cell));
     const int gy = static_cast<int>(std::floor((p.y() - gy0) / o_.ground_cell));
     if (gx < 0 || gy < 0 || gx >= gw_ || gy >= gh_) continue;
-    lower_to(ground_min_[static_cast<size_t>(gy) * gw_ + gx], p.z());
+    s.column_z.emplace_back(static_cast<uint32_t>(gy) * gw_ + gx, p.z());
+  }
+  std::sort(s.column_z.begin(), s.column_z.end());
+  // Per column the lowest return that kGroundSupport returns of this scan confirm: a stray return
+  // beyond the ground (multipath, a spurious echo) stands alone and would sink the column.
+  for (size_t i = 0; i < s.column_z.size();) {
+    size_t end = i;
+    while (end < s.column_z.size() && s.column_z[end].first == s.column_z[i].first) ++end;
+    for (size_t k = i; k + kGroundSupport - 1 < end; ++k)
+      if (s.column_z[k + kGroundSupport - 1].second - s.column_z[k].second <= kGroundBand) {
+        lower_to(ground_min_[s.column_z[i].first], s.column_z[k].second);
+        break;
+      }
+    i = end;
   }
 }
 
@@ -174,8 +193,8 @@ void OccupancyGridBuilder::add_rays(const RayBatch& b) {
 
 Occupancy OccupancyGridBuilder::state(const Cell& c) const {
   const int seen = c.hits + c.passes;
-  if (seen == 0) return Occupancy::unknown;
-  return c.hits > 0 && c.hits >= o_.occupied_ratio * seen ? Occupancy::occupied : Occupancy::free;
+  if (c.hits >= o_.min_scans && c.hits >= o_.occupied_ratio * seen) return Occupancy::occupied;
+  return c.passes >= o_.min_scans ? Occupancy::free : Occupancy::unknown;
 }
 
 OccupancyGrid OccupancyGridBuilder::grid() const {

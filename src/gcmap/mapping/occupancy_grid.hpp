@@ -3,13 +3,16 @@
 //
 // Model: each ray runs from the sensor's position at the point's time to the point, in the map
 // frame. Heights are taken above the local ground: the lowest return within about 1.5 m (a 3 x 3
-// block of 1 m columns), so hills and a map frame tilted with the first scan do not turn the
-// ground into walls. A return whose height lies in the band [height_min, height_max] marks its cell
+// block of 1 m columns) that two more returns of its own scan confirm within 0.25 m, so hills, a
+// map frame tilted with the first scan and stray echoes beyond the ground do not turn the ground
+// into walls. A return whose height lies in the band [height_min, height_max] marks its cell
 // hit; the cells the ray crosses while it is no higher than height_max (and the end cell of a ray
 // that reached the ground below the band) are passed. Evidence is counted once per scan and cell,
 // a hit winning over a pass in the same scan (thin walls grazed by neighbouring rays). A cell is
-// occupied when hits >= occupied_ratio * (hits + passes), free when only passed or below that, and
-// unknown when no ray came. Moving objects are hit in a few scans and passed in many: free.
+// occupied when hit in min_scans scans and hits >= occupied_ratio * (hits + passes), free when
+// passed in min_scans scans and not occupied, else unknown: one scan's stray echo, whose ray runs
+// through a wall into a building, is no evidence. Moving objects are hit in a few scans and passed
+// in many: free.
 #include <Eigen/Geometry>
 #include <atomic>
 #include <cstdint>
@@ -27,6 +30,7 @@ struct GridOptions {
   float max_range = 40.f;                      // m in the plane; farther returns are not used
   float min_range = 1.0f;                      // m in the plane; nearer returns are the vehicle itself
   float occupied_ratio = 0.25f;
+  uint16_t min_scans = 2;    // scans that must agree before a cell is occupied or free
   float ground_cell = 1.0f;  // m: columns of the local ground
 };
 
