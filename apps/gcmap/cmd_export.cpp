@@ -1,7 +1,6 @@
 // gcmap export: the map of a gcmap map output folder as LAS 1.4, PLY or PCD, georeferenced when
 // the geodetic origin of the map frame is given.
 #include <spdlog/spdlog.h>
-#include <yaml-cpp/yaml.h>
 
 #include <atomic>
 #include <cstdio>
@@ -112,21 +111,6 @@ struct Georeference {
   std::unique_ptr<CrsTransform> crs;  // of the points; null: local ENU
   std::unique_ptr<CrsTransform> utm;  // of the trajectory files
 };
-
-// The ENU origin of a run that GNSS georeferenced (OUT/stats.json "gnss"); none otherwise.
-std::optional<Geodetic> recorded_enu_origin(const std::string& out) {
-  const fs::path stats = fs::path(out) / "stats.json";
-  if (!fs::exists(stats)) return std::nullopt;
-  YAML::Node root;
-  try {
-    root = YAML::Load(read_file(stats.string()));
-  } catch (const YAML::Exception& e) { throw Error(stats.string() + ": not valid JSON (" + e.msg + ")"); }
-  const YAML::Node gnss = root["gnss"];
-  if (!gnss || !gnss["georeferenced"] || !gnss["georeferenced"].as<bool>(false)) return std::nullopt;
-  const YAML::Node o = gnss["enu_origin"];
-  if (!o || !o.IsSequence() || o.size() != 3) throw Error(stats.string() + ": gnss.enu_origin is not [lat, lon, alt]");
-  return Geodetic{o[0].as<double>(), o[1].as<double>(), o[2].as<double>()};
-}
 
 // --origin, else the run's own GNSS origin; none: the map frame, unreferenced.
 std::optional<Georeference> make_georeference(const ExportOptions& o) {
@@ -334,7 +318,13 @@ Json grid_json(const ExportOptions& o, const GridOptions& g, const GridResult& r
   j["source"] = r.source;
   j["resolution"] = g.resolution;
   j["height_band"] = Json(Json::Array{g.height_min, g.height_max});
-  j["height_reference"] = "the local ground: the lowest return within about 1.5 m";
+  j["height_reference"] = "the local ground: the lowest return within about 1.5 m that two more of its scan confirm";
+  j["levelling"] = r.levelling;
+  Json R = Json::array();
+  for (int i = 0; i < 3; ++i)
+    for (int k = 0; k < 3; ++k) R.push_back(r.R_level_map(i, k));
+  j["R_level_map"] = R;
+  j["frame"] = "the map frame turned by R_level_map (row major) about its origin; origin and cells in that frame";
   j["max_range"] = g.max_range;
   j["size"] = Json(Json::Array{r.grid.width, r.grid.height});
   j["origin"] = Json(Json::Array{r.grid.origin.x(), r.grid.origin.y(), 0.0});
@@ -355,7 +345,7 @@ int run_grid(const ExportOptions& o) {
   const GridResult r = make_grid(o.input, input, g,
                                  [&](size_t done, size_t total) { progress.update(done, "(of " + std::to_string(total) + ")"); });
   progress.finish();
-  if (!o.quiet) spdlog::info("{}", r.source);
+  if (!o.quiet) spdlog::info("{}; levelling: {}", r.source, r.levelling);
   if (r.grid.cells.empty()) throw Error(o.input + ": no return fell in the grid's range and height band; nothing written");
   std::error_code ec;
   fs::create_directories(o.output, ec);

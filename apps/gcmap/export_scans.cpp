@@ -10,7 +10,9 @@
 #include <filesystem>
 #include <memory>
 
+#include "gcmap/calibration/elevation_calibration.hpp"
 #include "gcmap/core/error.hpp"
+#include "gcmap/core/preprocess.hpp"
 #include "gcmap/core/se3.hpp"
 #include "gcmap/io/bag_reader.hpp"
 #include "gcmap/io/bag_scans.hpp"
@@ -154,9 +156,10 @@ Eigen::AlignedBox2d reach_of(const std::vector<Eigen::Vector3f>& origins, float 
 
 RayBatch batch_of(const MappedScan& s) { return {s.cloud.points, s.origin_of, s.origins}; }
 
-GridResult grid_from_scans(const std::string& out, const std::string& input, const GridOptions& o,
+GridResult grid_from_scans(const std::string& out, const std::string& input, const GridOptions& o, const Eigen::Isometry3d& L,
                            const std::function<void(size_t, size_t)>& progress) {
-  const Trajectory t = read_trajectory((fs::path(out) / "trajectory.tum").string());
+  Trajectory t = read_trajectory((fs::path(out) / "trajectory.tum").string());
+  for (Eigen::Isometry3d& T : t.poses) T = L * T;
   std::vector<Eigen::Vector3f> positions;
   for (const Eigen::Isometry3d& T : t.poses) positions.push_back(T.translation().cast<float>());
   OccupancyGridBuilder b(reach_of(positions, o.max_range), o);
@@ -166,8 +169,11 @@ GridResult grid_from_scans(const std::string& out, const std::string& input, con
   b.finish_ground();
   for_each_mapped_scan(
       out, input, t, [&](MappedScan& s) { b.add_rays(batch_of(s)); }, [&](size_t d, size_t) { progress(n + d, 2 * n); });
-  return {b.grid(), "rays: the " + std::to_string(n) + " scans of " + input +
-                        " in the final trajectory, each point cast from the sensor's position at its own time"};
+  GridResult r;
+  r.grid = b.grid();
+  r.source = "rays: the " + std::to_string(n) + " scans of " + input +
+             " in the final trajectory, each point cast from the sensor's position at its own time";
+  return r;
 }
 
 struct SubmapRays {
@@ -176,12 +182,12 @@ struct SubmapRays {
 };
 
 // The submap's points in the map frame, each from its nearest keyframe (which saw it, most likely).
-SubmapRays submap_rays(const Session& s, size_t k) {
+SubmapRays submap_rays(const Session& s, size_t k, const Eigen::Isometry3d& L) {
   SubmapRays r;
   const Submap& m = s.submaps[k];
-  const Eigen::Isometry3f T = s.T_world_submap[k].cast<float>();
+  const Eigen::Isometry3f T = (L * s.T_world_submap[k]).cast<float>();
   for (const Eigen::Isometry3d& K : m.T_submap_keyframe)
-    r.origins.push_back((s.T_world_submap[k] * K).translation().cast<float>());
+    r.origins.push_back((L * s.T_world_submap[k] * K).translation().cast<float>());
   if (r.origins.empty()) return r;
   for (const Eigen::Vector3f& p : m.cloud->points) {
     const Eigen::Vector3f q = T * p;
@@ -194,11 +200,12 @@ SubmapRays submap_rays(const Session& s, size_t k) {
   return r;
 }
 
-GridResult grid_from_session(const std::string& out, const GridOptions& o, const std::function<void(size_t, size_t)>& progress) {
+GridResult grid_from_session(const std::string& out, const GridOptions& o, const Eigen::Isometry3d& L,
+                             const std::function<void(size_t, size_t)>& progress) {
   const std::string dir = (fs::path(out) / "session").string();
   const Session s = read_session(dir);
   std::vector<SubmapRays> rays(s.submaps.size());
-  tbb::parallel_for(size_t{0}, rays.size(), [&](size_t k) { rays[k] = submap_rays(s, k); });
+  tbb::parallel_for(size_t{0}, rays.size(), [&](size_t k) { rays[k] = submap_rays(s, k, L); });
   std::vector<Eigen::Vector3f> origins;
   for (const SubmapRays& r : rays) origins.insert(origins.end(), r.origins.begin(), r.origins.end());
   OccupancyGridBuilder b(reach_of(origins, o.max_range), o);
@@ -208,18 +215,62 @@ GridResult grid_from_session(const std::string& out, const GridOptions& o, const
   progress(rays.size(), 2 * rays.size());
   tbb::parallel_for(size_t{0}, rays.size(), [&](size_t k) { b.add_rays(batch(k)); });
   progress(2 * rays.size(), 2 * rays.size());
-  return {b.grid(), "rays: the submap clouds of " + dir +
-                        " (the scans are not on disk), each point cast from the nearest keyframe of its submap"};
+  GridResult r;
+  r.grid = b.grid();
+  r.source = "rays: the submap clouds of " + dir +
+             " (the scans are not on disk), each point cast from the nearest keyframe of its submap";
+  return r;
+}
+
+// The walls of the session's submaps (0.5 m voxels: planes stay planes) stand the map upright.
+Eigen::Matrix3d wall_levelling(const Session& s) {
+  std::vector<CalibrationScan> clouds(s.submaps.size());
+  tbb::parallel_for(size_t{0}, clouds.size(), [&](size_t k) {
+    clouds[k].cloud = voxel_downsample(*s.submaps[k].cloud, 0.5);
+    estimate_covariances(clouds[k].cloud);
+    clouds[k].T_world_sensor = s.T_world_submap[k];
+  });
+  return levelling_rotation(clouds);
+}
+
+std::pair<Eigen::Matrix3d, std::string> grid_levelling(const std::string& out) {
+  const fs::path session = fs::path(out) / "session";
+  if (recorded_enu_origin(out)) return {Eigen::Matrix3d::Identity(), "none: the map frame is local ENU (GNSS)"};
+  if (!fs::exists(session / "manifest.yaml")) return {Eigen::Matrix3d::Identity(), "none: no session/ to find walls in"};
+  const Eigen::Matrix3d R = wall_levelling(read_session(session.string()));
+  char text[160];
+  std::snprintf(text, sizeof text, "the map frame turned by roll %.3f deg, pitch %.3f deg, so that its walls stand vertical",
+                std::atan2(R(2, 1), R(2, 2)) * 180.0 / M_PI, std::asin(std::clamp(-R(2, 0), -1.0, 1.0)) * 180.0 / M_PI);
+  return {R, text};
 }
 
 }  // namespace
 
+std::optional<Geodetic> recorded_enu_origin(const std::string& out) {
+  const fs::path stats = fs::path(out) / "stats.json";
+  if (!fs::exists(stats)) return std::nullopt;
+  YAML::Node root;
+  try {
+    root = YAML::Load(read_file(stats.string()));
+  } catch (const YAML::Exception& e) { throw Error(stats.string() + ": not valid JSON (" + e.msg + ")"); }
+  const YAML::Node gnss = root["gnss"];
+  if (!gnss || !gnss["georeferenced"] || !gnss["georeferenced"].as<bool>(false)) return std::nullopt;
+  const YAML::Node o = gnss["enu_origin"];
+  if (!o || !o.IsSequence() || o.size() != 3) throw Error(stats.string() + ": gnss.enu_origin is not [lat, lon, alt]");
+  return Geodetic{o[0].as<double>(), o[1].as<double>(), o[2].as<double>()};
+}
+
 GridResult make_grid(const std::string& out, const std::string& input, const GridOptions& options,
                      const std::function<void(size_t, size_t)>& progress) {
-  if (!input.empty()) return grid_from_scans(out, input, options, progress);
-  if (!fs::exists(fs::path(out) / "session" / "manifest.yaml"))
+  if (input.empty() && !fs::exists(fs::path(out) / "session" / "manifest.yaml"))
     throw Error(out + ": neither the scans it was mapped from nor session/: nothing to cast rays from (give --scans)");
-  return grid_from_session(out, options, progress);
+  const auto [R, levelling] = grid_levelling(out);
+  Eigen::Isometry3d L = Eigen::Isometry3d::Identity();
+  L.linear() = R;
+  GridResult r = input.empty() ? grid_from_session(out, options, L, progress) : grid_from_scans(out, input, options, L, progress);
+  r.R_level_map = R;
+  r.levelling = levelling;
+  return r;
 }
 
 }  // namespace gcmap::cli

@@ -2,9 +2,11 @@
 // The scans behind a gcmap map output folder, in the map frame of its final trajectory: for the
 // per-scan export and the occupancy grid (whose fallback, when the scans are gone, is the session).
 #include <functional>
+#include <optional>
 #include <string>
 
 #include "gcmap/core/point_cloud.hpp"
+#include "gcmap/io/geo.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "gcmap/mapping/occupancy_grid.hpp"
 
@@ -33,8 +35,17 @@ void for_each_mapped_scan(const std::string& out, const std::string& input, cons
 
 struct GridResult {
   OccupancyGrid grid;
-  std::string source;  // what the rays came from, in words
+  std::string source;                                         // what the rays came from, in words
+  Eigen::Matrix3d R_level_map = Eigen::Matrix3d::Identity();  // the grid's frame: the map frame levelled
+  std::string levelling;                                      // how, in words
 };
+
+// The ENU origin of a run that GNSS georeferenced (OUT/stats.json "gnss"); none otherwise.
+std::optional<Geodetic> recorded_enu_origin(const std::string& out);
+
+// The grid is made in the map frame levelled by its walls (levelling_rotation over the session's
+// submaps), so that it is projected along gravity rather than along the first scan's lean; not for
+// a run in local ENU (GNSS) nor without a session.
 // From the scans when `input` is not empty, else from the session's submap clouds (rays from the
 // nearest keyframe of the submap). progress(done, total) over both passes.
 GridResult make_grid(const std::string& out, const std::string& input, const GridOptions& options,

@@ -3,6 +3,8 @@
 #include <tbb/parallel_for.h>
 
 #include <cmath>
+#include <cstdlib>
+#include <string>
 
 #include "gcmap/io/occupancy_grid_io.hpp"
 #include "gcmap/sim/simulator.hpp"
@@ -18,9 +20,13 @@ struct GridScore {
 };
 
 // Solid columns over the grid's cells: a static object within [band_min, band_max] above the
-// ground. The map frame is the first scan's sensor frame: sim.poses()[0] in the world.
-inline std::vector<char> solid_cells(const OccupancyGrid& g, const sim::Simulator& sim, float band_min, float band_max) {
-  const Eigen::Isometry3d T_world_map = sim.poses()[0];
+// ground. The map frame is the first scan's sensor frame: sim.poses()[0] in the world; the grid's
+// frame is that turned by R_level_map (export.json).
+inline std::vector<char> solid_cells(const OccupancyGrid& g, const sim::Simulator& sim, float band_min, float band_max,
+                                     const Eigen::Matrix3d& R_level_map) {
+  Eigen::Isometry3d T_map_level = Eigen::Isometry3d::Identity();
+  T_map_level.linear() = R_level_map.transpose();
+  const Eigen::Isometry3d T_world_map = sim.poses()[0] * T_map_level;
   std::vector<char> solid(g.cells.size(), 0);
   tbb::parallel_for(0, g.height, [&](int y) {
     for (int x = 0; x < g.width; ++x) {
@@ -33,6 +39,20 @@ inline std::vector<char> solid_cells(const OccupancyGrid& g, const sim::Simulato
     }
   });
   return solid;
+}
+
+// R_level_map of an export's export.json (row major after the key).
+inline Eigen::Matrix3d level_of(const std::string& export_json) {
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  size_t at = export_json.find("\"R_level_map\":[");
+  if (at == std::string::npos) return R;
+  const char* p = export_json.c_str() + at + 15;
+  for (int i = 0; i < 9; ++i) {
+    char* end = nullptr;
+    R(i / 3, i % 3) = std::strtod(p, &end);
+    p = end + 1;
+  }
+  return R;
 }
 
 // Cells with any of their 3 x 3 block set.
@@ -61,9 +81,10 @@ inline std::vector<char> eroded(const std::vector<char>& m, int w, int h) {
 
 // True walls: solid cells beside a non-solid one, where the grid knows a cell within one cell
 // (walls no ray could reach, behind buildings, are not held against it).
-inline GridScore score_grid(const OccupancyGrid& g, const sim::Simulator& sim, float band_min, float band_max) {
+inline GridScore score_grid(const OccupancyGrid& g, const sim::Simulator& sim, float band_min, float band_max,
+                            const Eigen::Matrix3d& R_level_map) {
   const int w = g.width, h = g.height;
-  const std::vector<char> solid = solid_cells(g, sim, band_min, band_max);
+  const std::vector<char> solid = solid_cells(g, sim, band_min, band_max, R_level_map);
   std::vector<char> known(solid.size()), occupied(solid.size()), wall(solid.size(), 0);
   for (size_t i = 0; i < solid.size(); ++i)
     known[i] = g.cells[i] != Occupancy::unknown, occupied[i] = g.cells[i] == Occupancy::occupied;

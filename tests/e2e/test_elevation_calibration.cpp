@@ -133,6 +133,31 @@ TEST(ElevationCalibration, WallsLevelATrajectoryThatPitchesAsItGoes) {
   EXPECT_LT(worst, 0.12);
 }
 
+// The city drive starts on a slope: a map in the first scan's frame leans by degrees. One rotation
+// from all scans' walls stands it upright (what the occupancy grid is projected along).
+TEST(ElevationCalibration, OneLevellingRotationStandsAMapInTheFirstScansFrameUpright) {
+  sim::SimulationConfig sc;
+  sc.scenario = "city";
+  sc.frames = 200;
+  sc.realism = sim::RealismConfig::none();
+  const sim::Simulator simulator(sc);
+  std::vector<CalibrationScan> scans(20);
+  tbb::parallel_for(size_t{0}, scans.size(), [&](size_t k) {
+    PreparedScan p = prepare_scan(simulator.scan(10 * k), 0.0, PreprocessConfig{}, {});
+    scans[k].cloud = std::move(*p.cloud);
+    scans[k].T_world_sensor = simulator.poses().front().inverse() * simulator.poses()[10 * k];
+  });
+  // The world's up in the map frame, before and after.
+  const Eigen::Vector3d up = simulator.poses().front().linear().transpose() * Eigen::Vector3d::UnitZ();
+  const Eigen::Matrix3d R = levelling_rotation(scans);
+  const double before = std::acos(up.z()) / kDeg, after = std::acos(std::min(1.0, (R * up).z())) / kDeg;
+  const double yaw = std::atan2(R(1, 0), R(0, 0)) / kDeg;
+  std::printf("the map frame leans %.3f deg from the vertical, %.4f deg after levelling (yaw %.4f deg)\n", before, after, yaw);
+  EXPECT_GT(before, 1.0);
+  EXPECT_LT(after, 0.05);
+  EXPECT_LT(std::abs(yaw), 0.1);  // roll and pitch only (their product turns about z by hundredths)
+}
+
 // A spinning sensor's beams are rings of fixed elevation; a non-repetitive pattern has none.
 TEST(ElevationCalibration, RingsAreFoundInSpinningSensorsOnly) {
   for (const char* sensor : {"hdl64", "vlp16", "os1-128", "avia"}) {

@@ -254,9 +254,9 @@ struct TiltEquations {
   Eigen::Vector2d b = Eigen::Vector2d::Zero();
 };
 
-TiltEquations wall_tilt(const CalibrationScan& s) {
+TiltEquations wall_tilt(const CalibrationScan& s, const Eigen::Matrix3d& R_level = Eigen::Matrix3d::Identity()) {
   TiltEquations e;
-  const Eigen::Matrix3d R = s.T_world_sensor.linear();
+  const Eigen::Matrix3d R = R_level * s.T_world_sensor.linear();
   for (const Eigen::Matrix3f& cov : s.cloud.covs) {
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> eig;
     eig.computeDirect(cov);
@@ -296,6 +296,20 @@ void level_step(std::vector<CalibrationScan>& scans, int window) {
 
 void level_with_walls(std::vector<CalibrationScan>& scans, int window) {
   for (int it = 0; it < kLevelIterations; ++it) level_step(scans, window);
+}
+
+Eigen::Matrix3d levelling_rotation(const std::vector<CalibrationScan>& scans) {
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  for (int it = 0; it < kLevelIterations; ++it) {
+    std::vector<TiltEquations> eq(scans.size());
+    tbb::parallel_for(size_t{0}, scans.size(), [&](size_t k) { eq[k] = wall_tilt(scans[k], R); });
+    TiltEquations sum;
+    sum.A = kWallPrior * Eigen::Matrix2d::Identity();
+    for (const TiltEquations& e : eq) sum.A += e.A, sum.b += e.b;
+    const Eigen::Vector2d tilt = sum.A.ldlt().solve(sum.b);
+    R = so3_exp(Eigen::Vector3d(tilt.x(), tilt.y(), 0.0)) * R;
+  }
+  return R;
 }
 
 ElevationCalibration ElevationCalibration::estimate(const std::vector<CalibrationScan>& scans,

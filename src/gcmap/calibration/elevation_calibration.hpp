@@ -41,6 +41,11 @@ struct CalibrationEstimate {
 // Each scan's tilt is averaged over `window` scans either side, and the positions are re-integrated
 // with the levelled orientations. Scans in trajectory order.
 void level_with_walls(std::vector<CalibrationScan>& scans, int window = 10);
+// The one roll and pitch that stand the steep surfaces of all `scans` (clouds with covariances,
+// placed by T_world_sensor) upright together: R with (R n).z = 0 for their normals, no turn about z.
+// A map made in the first scan's frame leans as that scan did; a 2-D grid of it is projected along
+// this R's vertical. The identity where no wall holds a direction.
+Eigen::Matrix3d levelling_rotation(const std::vector<CalibrationScan>& scans);
 
 // Offsets in 0.1 deg bins of the measured elevation (a bin per beam of a spinning sensor).
 class ElevationCalibration {
