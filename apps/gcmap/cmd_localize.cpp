@@ -23,8 +23,27 @@ struct LocalizeOptions {
   MapRunOptions input;  // the scans: input, start, max_frames, quiet and the bag options
   std::string map, output, initial_pose, config_file, device = "auto";
   bool global_init = false;
+  bool map_calibration = true;  // --no-map-calibration turns it off
   int threads = 0;
 };
+
+// The beam offsets the map was made with (elevation_calibration.txt beside its session): the scans
+// must be corrected as the map's were to match it, so the same sensor is assumed. Not when the
+// config names a file of its own (with_elevation_calibration loads that) or --no-map-calibration.
+std::shared_ptr<const ElevationCalibration> map_calibration(const LocalizeOptions& o, const std::string& session,
+                                                            const MappingConfig& config, std::string& said) {
+  fs::path dir(session);
+  if (!dir.has_filename()) dir = dir.parent_path();  // "out/session/"
+  const fs::path file = dir.parent_path() / "elevation_calibration.txt";
+  if (!config.preprocess.elevation_calibration.empty()) said = "the config's " + config.preprocess.elevation_calibration;
+  else if (!o.map_calibration) said = "none (--no-map-calibration)";
+  else if (!fs::exists(file)) said = "none (the map was made without beam offsets)";
+  else {
+    said = "the map's " + file.string() + " (the same sensor assumed; --no-map-calibration to map the scans as they are)";
+    return std::make_shared<const ElevationCalibration>(ElevationCalibration::load(file.string()));
+  }
+  return nullptr;
+}
 
 Json frames_json(const std::vector<LocalizedFrame>& frames, int start) {
   Json all = Json::array();
@@ -55,8 +74,11 @@ int localize(const LocalizeOptions& o) {
   ScanSource& source = *input.source;
   fs::create_directories(o.output);
   auto prior = std::make_shared<PriorMap>(PriorMap{std::move(s.submaps), std::move(s.T_world_submap)});
+  std::string calibration;
+  auto offsets = map_calibration(o, folder, config, calibration);
+  if (!o.input.quiet) spdlog::info("beam calibration: {}", calibration);
   Localizer localizer(prior, config, cuda::make_backend(parse_device(o.device, "--device")),
-                      PipelineOptions{.kitti_hdl64 = input.kitti_hdl64, .elevation_calibration = nullptr});
+                      PipelineOptions{.kitti_hdl64 = input.kitti_hdl64, .elevation_calibration = std::move(offsets)});
   if (!o.initial_pose.empty()) localizer.set_initial_pose(parse_pose_option("--initial-pose", o.initial_pose));
   Progress progress("frame", source.size_hint(), o.input.quiet);
   size_t tracking = 0;
@@ -83,6 +105,7 @@ int localize(const LocalizeOptions& o) {
   write_trajectory((fs::path(o.output) / "trajectory.tum").string(), t);
   Json report = Json::object();
   report["frames"] = frames.size();
+  report["beam_calibration"] = calibration;
   report["tracked_fraction"] = frames.empty() ? 0.0 : double(tracking) / frames.size();
   report["mean_map_overlap"] = frames.empty() ? 0.0 : overlap / frames.size();
   report["seconds"] = progress.seconds();
@@ -119,6 +142,9 @@ void add_localize(CLI::App& app, Runner& run) {
   cmd->add_option("--initial-pose", o->initial_pose, "First frame's pose in the map: \"x y z qx qy qz qw\"");
   cmd->add_flag("--global-init", o->global_init, "Find the first pose by ScanContext place recognition and GICP");
   cmd->add_option("--config", o->config_file, "YAML configuration (default: the prior session's)");
+  cmd->add_flag(
+      "--no-map-calibration", [o](int64_t) { o->map_calibration = false; },
+      "Do not correct the scans by the map's elevation_calibration.txt (the beam offsets it was made with)");
   cmd->add_option("--start", o->input.start, "First scan index")->capture_default_str();
   cmd->add_option("--max-frames", o->input.max_frames, "Process at most this many scans (0 = all)")->capture_default_str();
   cmd->add_option("--device", o->device, "cpu, cuda or auto")->capture_default_str();

@@ -66,6 +66,21 @@ TEST(InputAssumptionsE2E, MapEstimatesBeamElevationsOfASpinningSensorThatTravels
       << off.err;
   EXPECT_FALSE(std::filesystem::exists(dir / "off/elevation_calibration.txt"));
 
+  // localize corrects the scans as the map's were, unless told not to; a map without offsets has none.
+  const std::string localize = "localize --max-frames 20 --initial-pose \"0 0 0 0 0 0 1\" " + (dir / "sim");
+  const CliRun with = run_gcmap(localize + " --map " + (dir / "out") + " -o " + (dir / "loc"));
+  ASSERT_EQ(with.code, 0) << with.err;
+  EXPECT_NE(with.err.find("beam calibration: the map's " + (dir / "out/elevation_calibration.txt")), std::string::npos)
+      << with.err;
+  const CliRun without =
+      run_gcmap(localize + " --map " + (dir / "out/session/") + " -o " + (dir / "loc_raw") + " --no-map-calibration");
+  ASSERT_EQ(without.code, 0) << without.err;
+  EXPECT_NE(slurp(dir / "loc_raw/localization.json").find("\"beam_calibration\":\"none (--no-map-calibration)\""),
+            std::string::npos);
+  const CliRun plain = run_gcmap(localize + " --map " + (dir / "off") + " -o " + (dir / "loc_off"));
+  ASSERT_EQ(plain.code, 0) << plain.err;
+  EXPECT_NE(plain.err.find("beam calibration: none (the map was made without beam offsets)"), std::string::npos) << plain.err;
+
   const CliRun near = run_gcmap("map " + (dir / "sim") + " -o " + (dir / "near") + " --no-render --max-frames 20");
   ASSERT_EQ(near.code, 0) << near.err;
   EXPECT_NE(near.err.find("beam calibration: not estimated: the first 20 frames travel"), std::string::npos) << near.err;
