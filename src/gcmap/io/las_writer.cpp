@@ -16,9 +16,10 @@ namespace gcmap {
 namespace {
 
 constexpr int kHeaderSize = 375, kVlrHeaderSize = 54;
-
-int record_length(const LasCloud& c) { return c.colors.empty() ? 30 : 36; }
 constexpr size_t kBlockPoints = 1 << 16;  // encoded in parallel, then written
+
+// Format 6, or 7 with its red, green and blue.
+int record_length(const LasCloud& c) { return c.colors.empty() ? 30 : 36; }
 
 // SemanticKITTI class -> ASPRS class. ASPRS 0-22 are standard; 64 vehicle, 65 person (riders too),
 // 66 fence, 67 pole, 68 traffic sign are user-definable classes (64-255) the export documents.
