@@ -10,6 +10,7 @@
 #include "gcmap/core/error.hpp"
 #include "gcmap/io/bag_scans.hpp"
 #include "gcmap/io/file.hpp"
+#include "gcmap/io/gnss_io.hpp"
 #include "gcmap/io/labels.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/trajectory_io.hpp"
@@ -77,6 +78,15 @@ const std::map<std::string, std::function<void(const std::string&, const std::st
          topic.type = d[0] & 1 ? "livox_ros_driver2/msg/CustomMsg" : "sensor_msgs/msg/PointCloud2";
          topic.encoding = d[0] & 2 ? MessageEncoding::cdr : MessageEncoding::ros1;
          check_cloud(decode_scan(topic, std::string_view(d).substr(1), n).cloud);
+       }},
+      {"fuzz_gnss",
+       [](const std::string& d, const std::string& n) {
+         // As the fuzz target: the first byte picks gnss.txt text or a NavSatFix encoding.
+         if (d.empty()) throw Error(n + ": empty");
+         const std::string_view rest = std::string_view(d).substr(1);
+         const int kind = static_cast<uint8_t>(d[0]) % 3;
+         if (kind == 0) EXPECT_FALSE(parse_gnss_txt(rest, n).empty());
+         else decode_navsatfix(rest, kind == 1 ? MessageEncoding::ros1 : MessageEncoding::cdr, n);
        }},
       {"fuzz_config",
        [](const std::string& d, const std::string& n) {
