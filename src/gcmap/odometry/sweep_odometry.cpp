@@ -9,6 +9,10 @@ namespace gcmap {
 
 namespace {
 
+// A registration whose translation is this poorly conditioned (smallest over largest eigenvalue of
+// its information) sees mostly parallel structure: its sweep gets the two-sweep velocity.
+constexpr double kDegenerateConditioning = 0.1;
+
 double mean_time(const PointCloud& cloud) {
   double sum = 0.0;
   for (const float t : cloud.times) sum += t;
@@ -137,8 +141,8 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
       continue;
     }
     const Eigen::Isometry3d T_world_mean = T_world_stamp * m.T_stamp(t_mean);
-    const double span = stamp + t_mean - reference_.stamp;
-    if (span > 1e-6) mean = {se3_log(reference_.pose.inverse() * T_world_mean) / span, reference_.stamp + 0.5 * span};
+    const bool degenerate = e.quality.conditioning() < kDegenerateConditioning;
+    if (auto registered = registered_mean(T_world_mean, stamp + t_mean, degenerate)) mean = *registered;
     m = sweep_motion(mean, stamp);
     T = T_world_mean * m.T_stamp(t_mean).inverse();
   }
@@ -159,6 +163,24 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
   e.T_world_frame = T;
   e.deskewed = true;
   return e;
+}
+
+std::optional<SweepOdometry::MeanVelocity> SweepOdometry::registered_mean(const Eigen::Isometry3d& T_world_mean, double time,
+                                                                         bool degenerate) const {
+  const auto since = [&](const SweepReference& from) -> std::optional<MeanVelocity> {
+    const double span = time - from.stamp;
+    if (span <= 1e-6) return std::nullopt;
+    return MeanVelocity{se3_log(from.pose.inverse() * T_world_mean) / span, from.stamp + 0.5 * span};
+  };
+  const std::optional<MeanVelocity> last = since(reference_);
+  // Where a sweep's geometry hardly tells a turn from a sideways motion (a straight road's rails
+  // and lane edges), the error of its registration returns through its own deskewing: the velocity
+  // since the last sweep carries it twice with opposite signs, and the drive swings from side to side
+  // with growing amplitude. Half of the velocity since the sweep before cancels that alternation;
+  // elsewhere it would only lag behind a fast change of the turn rate (a corner).
+  const std::optional<MeanVelocity> two = degenerate && before_previous_ ? since(*before_previous_) : std::nullopt;
+  if (!last || !two) return last;
+  return MeanVelocity{0.5 * (last->velocity + two->velocity), 0.5 * (last->time + two->time)};
 }
 
 SweepOdometry::SweepMotion SweepOdometry::sweep_motion(const MeanVelocity& mean, double stamp) const {

@@ -63,6 +63,10 @@ class SweepOdometry {
   // `mean` with the previous sweep's mean velocity: linear in time (constant without one), at the
   // stamp (anchoring it at the mean point time instead made no difference).
   SweepMotion sweep_motion(const MeanVelocity& mean, double stamp) const;
+  // The mean velocity up to `time` (absolute), where the sweep's registration put T_world_mean:
+  // since the last sweep's reference, for a degenerate registration blended with that since the
+  // one before (none: too close).
+  std::optional<MeanVelocity> registered_mean(const Eigen::Isometry3d& T_world_mean, double time, bool degenerate) const;
 
   // The first sweep entered the model as it came; with the first motion registered (smeared
   // against smeared, which cancels), it is deskewed and the model started again from it.
