@@ -1,3 +1,4 @@
+#include <atomic>
 #include <limits>
 
 #include "gcmap/core/error.hpp"
@@ -177,6 +178,26 @@ TEST(LevenbergMarquardt, PoseGraphReachesKnownOptimum) {
     EXPECT_LT(test::translation_error(p.initial[k], p.truth[k]), 1e-6);
     EXPECT_LT(test::rotation_error_deg(p.initial[k], p.truth[k]), 1e-5);
   }
+}
+
+TEST(LevenbergMarquardt, AStopRequestEndsItAfterTheIterationUnderWayAtItsAcceptedPoses) {
+  PoseGraphProblem whole = square_loop(RobustKernel::none(), false), stopped = whole;
+  const LMResult all = LevenbergMarquardt().optimize(whole.graph, whole.initial, {0});
+  ASSERT_GT(all.iterations, 2);
+  std::atomic<bool> stop{false};
+  LevenbergMarquardt lm;
+  lm.stop_on(&stop);
+  lm.on_iteration([&](const LMIteration&) { stop = true; });  // as a signal arriving during the first iteration
+  const LMResult r = lm.optimize(stopped.graph, stopped.initial, {0});
+  EXPECT_EQ(r.iterations, 1);
+  EXPECT_FALSE(r.converged);
+  EXPECT_LT(r.final_error, r.initial_error);
+  // The poses of the one accepted step, as an optimization bounded to one iteration leaves them.
+  PoseGraphProblem one = square_loop(RobustKernel::none(), false);
+  LMConfig config;
+  config.max_iterations = 1;
+  LevenbergMarquardt(config).optimize(one.graph, one.initial, {0});
+  for (int k = 0; k < 4; ++k) EXPECT_TRUE(stopped.initial.at(k).isApprox(one.initial.at(k), 1e-12));
 }
 
 TEST(LevenbergMarquardt, ShiftedTukeyRejectsOutlierConstraint) {

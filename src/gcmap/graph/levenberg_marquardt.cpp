@@ -313,6 +313,7 @@ LMResult LevenbergMarquardt::optimize(const FactorGraph& graph, Values& values, 
     return result;
   }
   for (int iter = 1; iter <= config_.max_iterations; ++iter) {
+    if (iter > 1 && stop_ && stop_->load()) break;
     LMIteration stats;
     stats.iteration = iter;
     const double lin_ms_before = result.linearize_ms;
@@ -329,7 +330,7 @@ LMResult LevenbergMarquardt::optimize(const FactorGraph& graph, Values& values, 
     result.converged = !step || converged(error, *step);
     // A linearization nobody will use is the most expensive thing LM could do here: the last
     // iteration reports its trial error (same association) instead.
-    const bool last = result.converged || iter == config_.max_iterations;
+    const bool last = result.converged || iter == config_.max_iterations || (stop_ && stop_->load());
     if (step) {
       values = std::move(step->values);
       error = last ? step->error : it.linearize(values);

@@ -1,4 +1,5 @@
 #pragma once
+#include <atomic>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -71,6 +72,9 @@ class LevenbergMarquardt {
   const LMConfig& config() const { return config_; }
   // Called after each iteration of optimize() (progress of a long optimization for a person).
   void on_iteration(IterationCallback callback) { on_iteration_ = std::move(callback); }
+  // When *stop turns true, optimize() ends after the iteration under way, at its accepted poses (a
+  // person's Ctrl-C must not wait for an optimization that runs for minutes).
+  void stop_on(const std::atomic<bool>* stop) { stop_ = stop; }
   // The sparse solver in use (what linear_solver auto chose for the last system).
   LinearSolver active_solver() const { return solver_.active(); }
 
@@ -89,6 +93,7 @@ class LevenbergMarquardt {
   SparseSolver solver_;
   double lambda_;
   IterationCallback on_iteration_;
+  const std::atomic<bool>* stop_ = nullptr;
 };
 
 }  // namespace gcmap

@@ -82,6 +82,8 @@ class GlobalMapper {
   // The final optimization, to a 1e-6 relative tolerance, of at most global.final_iterations
   // (or max_iterations when given; 0 skips it); on_iteration after each of its iterations.
   void optimize_final(std::optional<int> max_iterations = std::nullopt, const IterationCallback& on_iteration = {});
+  // Insertions end their optimization early once *stop is true (LevenbergMarquardt::stop_on).
+  void stop_on(const std::atomic<bool>* stop) { lm_.stop_on(stop); }
 
   const std::vector<Submap>& submaps() const { return submaps_; }
   const Eigen::Isometry3d& pose(int id) const { return values_.at(id); }

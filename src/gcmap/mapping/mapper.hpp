@@ -68,6 +68,8 @@ class Mapper {
   // Closes the open submap and runs the final global optimization (at most max_final_iterations
   // when given; 0 skips it); on_iteration after each of its iterations.
   void finish(std::optional<int> max_final_iterations = std::nullopt, const IterationCallback& on_iteration = {});
+  // Global optimizations of insertions end early once *stop is true; the final one is bounded by finish().
+  void stop_on(const std::atomic<bool>* stop) { global_.stop_on(stop); }
 
   size_t num_frames() const { return frames_.size(); }
   // World pose of a frame (skipped frames via odometry from their anchor keyframe), expressed so

@@ -188,6 +188,7 @@ PipelineStats MappingPipeline::stats() const {
 }
 
 size_t MappingPipeline::run(ScanSource& source, const RunOptions& options) {
+  mapper_.stop_on(options.stop);
   struct Item {
     int frame = 0;
     ScanRecord record;

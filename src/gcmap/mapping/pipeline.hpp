@@ -96,7 +96,9 @@ class MappingPipeline {
     // After each frame, from the mapping stage: the mapper's accessors (submaps(), factors(),
     // mapper()) may be read there; stamps(), odometry() and stats() change meanwhile.
     std::function<void(const Frame&)> on_frame;
-    const std::atomic<bool>* stop = nullptr;  // when set, no further scan is read
+    // When *stop turns true, no further scan is read and the insertion under way ends its global
+    // optimization early, as does the closing one of finish(): *stop must outlive it.
+    const std::atomic<bool>* stop = nullptr;
   };
   // Feeds every scan of the source through add_prepared, loading and preparing scans ahead in
   // parallel with the odometry and mapping of earlier frames, and the odometry of a frame in
