@@ -110,7 +110,7 @@ TEST(DeskewDrive, DoesNotSwingOutOnAStraightHighway) {
   }
   std::printf("worst frame-to-frame rotation error %.3f deg, %d frames placed by the prediction\n", worst_deg, failed);
   EXPECT_EQ(failed, 0);
-  // Measured 0.05 deg.
+  // Measured 0.043 deg (the code before: 53 deg).
   EXPECT_LT(worst_deg, 0.2);
 }
 
