@@ -6,6 +6,7 @@
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/sim/rng.hpp"
+#include "gcmap/sim/simulator.hpp"
 
 namespace gcmap::sim {
 
@@ -104,6 +105,14 @@ ImuSample ImuTrajectory::measure(double t) const {
   }
   const Eigen::Matrix3d R = R_[k] * so3_exp(phi);
   return {t, so3_right_jacobian(phi) * dphi / h, R.transpose() * (acc / (h * h) - gravity_vector())};
+}
+
+ImuTrajectory imu_trajectory(const Simulator& sim, const Eigen::Isometry3d& T_lidar_imu) {
+  constexpr int kKnotsPerFrame = 10;
+  const double step = 0.1 / kKnotsPerFrame;
+  std::vector<Eigen::Isometry3d> knots;
+  for (size_t i = 0; i <= (sim.num_frames() - 1) * kKnotsPerFrame; ++i) knots.push_back(sim.pose_at_time(step * double(i)));
+  return ImuTrajectory(knots, step, T_lidar_imu);
 }
 
 SimulatedImu simulate_imu(const ImuTrajectory& trajectory, const ImuSimConfig& config, uint64_t seed) {

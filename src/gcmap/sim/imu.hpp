@@ -1,12 +1,13 @@
 #pragma once
 // A simulated IMU rigidly attached to the LiDAR. The drive's poses are piecewise (a polyline and a
 // piecewise-linear speed profile), so the IMU is derived from a smooth trajectory through the IMU
-// poses at the frame stamps, T_world_imu(t_k) = T_world_lidar(t_k) T_lidar_imu: positions by
-// quintic Hermite segments (position, velocity and acceleration continuous), rotations by
-// R_k exp(phi(tau)) with a cubic Hermite phi (angular velocity continuous); knot velocities and
-// accelerations from central differences. Between frames it may differ from the LiDAR's own
-// in-sweep poses by the smoothing (4 mm at most on the city drive); at the frame stamps it is exact, and the
-// samples are the exact derivatives of that trajectory.
+// poses at knots, T_world_imu(t_k) = T_world_lidar(t_k) T_lidar_imu: positions by quintic Hermite
+// segments (position, velocity and acceleration continuous), rotations by R_k exp(phi(tau)) with a
+// cubic Hermite phi (angular velocity continuous); knot velocities and accelerations from central
+// differences. The samples are the exact derivatives of that trajectory. Knots at the frame stamps
+// only would leave the IMU blind to how the motion changes within a sweep (it would know no more
+// than 10 Hz poses do): imu_trajectory puts ten knots in each frame, so that the IMU follows the
+// LiDAR's own in-sweep poses closely.
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <string>
@@ -45,6 +46,10 @@ class ImuTrajectory {
   std::vector<Eigen::Vector3d> p_, v_, a_, w_;       // knot positions, velocities, accelerations, body rates
   std::vector<Eigen::Vector3d> phi_end_, dphi_end_;  // per segment: log(R_k^T R_k+1), phi'(1)
 };
+
+class Simulator;
+// The IMU trajectory of a simulated drive: knots every 0.01 s up to its last frame's stamp.
+ImuTrajectory imu_trajectory(const Simulator& sim, const Eigen::Isometry3d& T_lidar_imu);
 
 struct SimulatedImu {
   std::vector<ImuSample> samples;  // stamped on the IMU's clock

@@ -119,4 +119,6 @@ Eigen::Isometry3d Simulator::pose_at(size_t frame, double seconds) const {
   return trajectory_->pose(static_cast<double>(frame) + seconds / sensor_.period);
 }
 
+Eigen::Isometry3d Simulator::pose_at_time(double t) const { return trajectory_->pose(t / 0.1); }
+
 }  // namespace gcmap::sim

@@ -60,6 +60,8 @@ class Simulator {
   const std::vector<Eigen::Isometry3d>& poses() const { return poses_; }
   // World pose of the sensor `seconds` after the stamp of `frame`.
   Eigen::Isometry3d pose_at(size_t frame, double seconds) const;
+  // World pose of the sensor at time t (s since frame 0's stamp; frames are 0.1 s apart).
+  Eigen::Isometry3d pose_at_time(double t) const;
   const Scenario& scenario() const { return scenario_; }
   const SensorModel& sensor() const { return sensor_; }
   const RealismConfig& realism() const { return realism_; }

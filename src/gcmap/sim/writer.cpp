@@ -407,7 +407,7 @@ size_t write_simulation(const std::string& dir_name, const SimulationConfig& con
     if (!quiet) report_progress(start + count, n, watch.ms() / 1000.0, tty);
   }
   if (output.imu) {
-    const SimulatedImu imu = simulate_imu(ImuTrajectory(sim.poses(), 0.1, output.imu->T_lidar_imu), *output.imu, config.seed);
+    const SimulatedImu imu = simulate_imu(imu_trajectory(sim, output.imu->T_lidar_imu), *output.imu, config.seed);
     warn_unrealistic(imu.samples, sim);
     sink.write_imu(imu.samples, output.message == ScanMessage::livox_custom_msg);
     write_imu_txt((dir / "imu.txt").string(), imu.samples);
