@@ -176,5 +176,27 @@ TEST(Deskew, RotatesCovariancesAndRejectsBadInput) {
   EXPECT_THROW(deskew(c, v), Error);
 }
 
+TEST(Deskew, APoseTableRestoresTheSceneOfAnyMotion) {
+  // An accelerating turn, sampled every millisecond as an IMU-driven motion is: each point moved
+  // by the blend of its two neighbouring poses lands where the exact motion puts it.
+  Vector6d v, a;
+  v << 0.1, -0.2, 1.5, 14.0, 0.5, -0.3;
+  a << 0.0, 0.3, -6.0, 2.0, -1.0, 0.0;
+  const auto T_0 = [&](double t) { return se3_exp(t * v + 0.5 * t * t * a); };
+  Sweep s = make_sweep(Vector6d::Zero(), 11);
+  for (size_t i = 0; i < s.measured.size(); ++i)
+    s.measured.points[i] = (T_0(s.measured.times[i]).inverse() * s.scene.points[i].cast<double>()).cast<float>();
+  SweepPoses poses;
+  poses.t0 = -0.002;
+  for (int k = 0; k <= 104; ++k) poses.T.push_back(T_0(poses.t0 + poses.step * k));
+  PointCloud c = s.measured;
+  deskew(c, poses);
+  EXPECT_LT(max_error(c, s.scene), 2e-4);
+  // Between two poses the pose is their blend; beyond the table the nearest is held.
+  EXPECT_LT(translation_error(poses.at(0.0505), T_0(0.0505)), 1e-4);
+  EXPECT_LT(translation_error(poses.at(1.0), poses.T.back()), 1e-12);
+  EXPECT_THROW(deskew(c, SweepPoses{}), Error);
+}
+
 }  // namespace
 }  // namespace gcmap::test

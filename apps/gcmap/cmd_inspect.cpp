@@ -38,7 +38,10 @@ void add_inspect(CLI::App& app, Runner& run) {
                               .elevation_calibration = pc.elevation_calibration,
                               .estimate_elevation_frames = c.calibration.estimate_elevation ? c.calibration.frames : 0,
                               .gnss_file = "",
-                              .gnss_topic = ""};
+                              .gnss_topic = "",
+                              .use_imu = c.imu.use,
+                              .imu_file = "",
+                              .imu_topic = ""};
       io.sample_scans = opt->sample;
       const InspectReport r = inspect_recording(opt->input, io);
       if (opt->json) std::printf("%s\n", r.to_json().dump().c_str());

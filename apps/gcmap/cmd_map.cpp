@@ -27,7 +27,7 @@ struct Overrides {
   bool pcd = false;
   bool no_explicit_loops = false;
   bool no_render = false;
-  bool no_deskew = false, deskew_from_azimuth = false, no_elevation_estimate = false;
+  bool no_deskew = false, deskew_from_azimuth = false, no_elevation_estimate = false, no_imu = false;
   int threads = 0;
   std::string device = "auto";
 
@@ -45,6 +45,7 @@ struct Overrides {
     cmd->add_flag(
         "--deskew-from-azimuth", deskew_from_azimuth,
         "Scans without per-point times: derive them from the azimuth of a spinning sensor (preprocess.deskew_from_azimuth)");
+    cmd->add_flag("--no-imu", no_imu, "Ignore the IMU the input carries: map as without one (imu.use: false)");
     cmd->add_option("--elevation-calibration", elevation_calibration,
                     "Per-beam elevation offsets from `gcmap calibrate` (preprocess.elevation_calibration)");
     cmd->add_flag("--no-elevation-estimate", no_elevation_estimate,
@@ -64,6 +65,7 @@ struct Overrides {
     if (deskew_from_azimuth) c.preprocess.deskew_from_azimuth = true;
     if (!elevation_calibration.empty()) c.preprocess.elevation_calibration = elevation_calibration;
     if (no_elevation_estimate) c.calibration.estimate_elevation = false;
+    if (no_imu) c.imu.use = false;
     try {
       c.validate();
     } catch (const Error& e) { throw Error(std::string("bad option: ") + e.what()); }
@@ -94,6 +96,10 @@ void add_map(CLI::App& app, Runner& run) {
   cmd->add_option("--gnss-topic", opt->gnss_topic,
                   "Bags: the sensor_msgs/NavSatFix topic of the fixes (epochs without a fix skipped; sigmas from the "
                   "covariance)");
+  cmd->add_option("--imu", opt->imu_file,
+                  "IMU samples (stamp gx gy gz ax ay az per line, rad/s and m/s^2 or g; default: imu.txt beside the scans, else "
+                  "a bag's only sensor_msgs/Imu topic): its gyro deskews the sweeps (see the imu: config section)");
+  cmd->add_option("--imu-topic", opt->imu_topic, "Bags: the sensor_msgs/Imu topic (when the bag has several)");
   auto bin_fields = std::make_shared<std::string>("xyzi");
   cmd->add_option("--bin-fields", *bin_fields, "Layout of .bin scans: xyzi (KITTI) or xyz")->capture_default_str();
   cmd->add_option("--initial-trajectory", opt->initial_trajectory, "KITTI or TUM poses to use instead of the built-in odometry");
@@ -127,6 +133,7 @@ void add_map(CLI::App& app, Runner& run) {
         for (const auto& f : viz::write_run_pictures(opt->output, {}))
           std::fprintf(stderr, "Wrote %s: %s.\n", f.path.c_str(), f.what.c_str());
       if (!r.gnss.empty()) std::fprintf(stderr, "%s\n", r.gnss.c_str());
+      if (!r.imu.empty()) std::fprintf(stderr, "%s\n", r.imu.c_str());
       if (!r.failure.empty()) std::fprintf(stderr, "gcmap: %s\n", r.failure.c_str());
       return r.signal ? 128 + r.signal : r.failure.empty() ? 0 : 2;
     };

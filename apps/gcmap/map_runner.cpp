@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
@@ -164,6 +165,12 @@ std::string gnss_line(const GnssStats& s, int epsg) {
   return buf;
 }
 
+std::string imu_line(const PipelineStats& s) {
+  const Eigen::Vector3d b = s.gyro_bias * 180.0 / M_PI;
+  return fmt::format("IMU: {} samples; the gyro deskewed {} of {} sweeps; gyro bias estimate ({:.4f}, {:.4f}, {:.4f}) deg/s",
+                     s.imu_samples, s.gyro_deskewed, s.frames, b.x(), b.y(), b.z());
+}
+
 // The UTM zone of the first fix; 0 without GNSS.
 int gnss_epsg(const InputAssumptions& input) {
   return input.gnss_fixes.empty() ? 0 : utm_epsg(input.gnss_fixes.front().position);
@@ -320,7 +327,10 @@ Input open_input(const MapRunOptions& o) {
                         .elevation_calibration = pc.elevation_calibration,
                         .estimate_elevation_frames = o.config.calibration.estimate_elevation ? o.config.calibration.frames : 0,
                         .gnss_file = o.gnss_file,
-                        .gnss_topic = o.gnss_topic};
+                        .gnss_topic = o.gnss_topic,
+                        .use_imu = o.config.imu.use,
+                        .imu_file = o.imu_file,
+                        .imu_topic = o.imu_topic};
   if (is_bag_path(o.input)) {
     if (o.start_time < 0 || o.duration < 0) throw Error("--start-time and --duration must be >= 0");
     if (!o.times_file.empty()) throw Error("--times applies to folders of scans, not to the bag " + o.input);
@@ -365,6 +375,7 @@ MapRunResult run_mapping(const MapRunOptions& o) {
   }
   MappingPipeline pipeline(o.config, cuda::make_backend(o.device), po);
   if (!input.assumptions.gnss_fixes.empty()) pipeline.set_gnss(gnss_positions(input.assumptions.gnss_fixes));
+  for (const ImuSample& sample : input.assumptions.imu_samples) pipeline.add_imu(sample);
   Progress progress("frame", source.size_hint(), o.quiet);
   MappingPipeline::RunOptions ro;
   if (!o.initial_trajectory.empty())
@@ -398,6 +409,7 @@ MapRunResult run_mapping(const MapRunOptions& o) {
   r.signal = signal;
   r.elevation_calibration = pipeline.elevation_calibration() != nullptr;
   if (!input.assumptions.gnss_fixes.empty()) r.gnss = gnss_line(pipeline.mapper().gnss_stats(), gnss_epsg(input.assumptions));
+  if (!input.assumptions.imu_samples.empty()) r.imu = imu_line(pipeline.stats());
   if (!signal && 2 * unusable > frames)
     r.failure = o.input + ": " + std::to_string(unusable) + " of its " + std::to_string(frames) +
                 " scans could not be mapped (unreadable, empty or too few points: see the warnings above)";

@@ -17,6 +17,8 @@ struct MapRunOptions {
   std::string times_file;                   // folders: --times, the stamps file (empty: looked for beside the scans)
   std::string gnss_file;                    // --gnss: GNSS fixes (empty: gnss.txt beside the scans, if any)
   std::string gnss_topic;                   // --gnss-topic: a bag's NavSatFix topic (empty: its only one, if any)
+  std::string imu_file;                     // --imu: IMU samples (empty: imu.txt beside the scans, if any)
+  std::string imu_topic;                    // --imu-topic: a bag's sensor_msgs/Imu topic (empty: its only one, if any)
   BinFields bin_fields = BinFields::xyzi;   // folders: layout of .bin scans
   double start_time = 0.0, duration = 0.0;  // bags: s after the first message; duration 0: to the end
   Device device = Device::automatic;
@@ -29,6 +31,7 @@ struct MapRunResult {
   int signal = 0;       // SIGINT or SIGTERM when interrupted (outputs are then partial)
   std::string failure;  // why the run failed although it wrote its outputs (most scans unusable), else empty
   std::string gnss;     // a line on the GNSS fixes used and rejected; empty without GNSS
+  std::string imu;      // a line on what the IMU did; empty without one
   bool nothing_written = false;
   bool elevation_calibration = false;  // elevation_calibration.txt written  // interrupted before mapping began (while estimating the beam elevations)
 };

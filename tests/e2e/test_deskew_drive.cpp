@@ -9,6 +9,7 @@
 #include "gcmap/core/se3.hpp"
 #include "gcmap/eval/trajectory_metrics.hpp"
 #include "gcmap/mapping/pipeline.hpp"
+#include "gcmap/sim/imu.hpp"
 #include "gcmap/sim/simulator.hpp"
 #include "test_util.hpp"
 
@@ -25,13 +26,17 @@ struct DriveErrors {
 // taken in about 1.3 s with yaw rates up to 100 deg/s.
 constexpr size_t kFirst = 80, kFrames = 28;
 
-std::vector<PointCloud> simulate(bool distorted, Poses& gt) {
+sim::SimulationConfig corner_drive(bool distorted) {
   sim::SimulationConfig sc;
   sc.scenario = "loop";
   sc.frames = 1032;
   sc.realism = sim::RealismConfig::none();
   sc.realism->motion_distortion = distorted;
-  const sim::Simulator simulator(sc);
+  return sc;
+}
+
+std::vector<PointCloud> simulate(bool distorted, Poses& gt) {
+  const sim::Simulator simulator(corner_drive(distorted));
   std::vector<PointCloud> scans(kFrames);
   tbb::parallel_for(size_t{0}, kFrames, [&](size_t k) { scans[k] = simulator.scan(kFirst + k); });
   gt.clear();
@@ -39,12 +44,32 @@ std::vector<PointCloud> simulate(bool distorted, Poses& gt) {
   return scans;
 }
 
-DriveErrors track_drive(std::vector<PointCloud> scans, const Poses& gt, bool deskew, bool redeskew = true) {
+// The corner drive's IMU (default noise unless noise_free), on the clock of the scans given to
+// track_drive (frame kFirst at 0).
+std::vector<ImuSample> simulate_imu(bool noise_free) {
+  const sim::SimulationConfig sc = corner_drive(true);
+  const sim::Simulator simulator(sc);
+  sim::ImuSimConfig ic;
+  ic.noise = !noise_free;
+  std::vector<ImuSample> out;
+  for (ImuSample s : sim::simulate_imu(sim::imu_trajectory(simulator, ic.T_lidar_imu), ic, sc.seed).samples) {
+    s.stamp -= 0.1 * kFirst;
+    if (s.stamp > -0.5 && s.stamp < 0.1 * kFrames + 0.5) out.push_back(s);
+  }
+  return out;
+}
+
+DriveErrors track_drive(std::vector<PointCloud> scans, const Poses& gt, bool deskew, bool redeskew = true,
+                        const std::vector<ImuSample>& imu = {}) {
   MappingConfig config;
   config.loop.enabled = false;
   config.preprocess.deskew = deskew;
   config.preprocess.redeskew = redeskew;
+  config.imu.x = sim::ImuSimConfig::default_T_lidar_imu().translation().x();
+  config.imu.y = sim::ImuSimConfig::default_T_lidar_imu().translation().y();
+  config.imu.z = sim::ImuSimConfig::default_T_lidar_imu().translation().z();
   MappingPipeline pipeline(config);
+  for (const ImuSample& s : imu) pipeline.add_imu(s);
   for (size_t k = 0; k < scans.size(); ++k) pipeline.add_scan(std::move(scans[k]), 0.1 * static_cast<double>(k));
   pipeline.finish();
   // From the 5th frame on: the first sweep is smeared (no motion known yet to deskew it with), and
@@ -78,6 +103,21 @@ TEST(DeskewDrive, CompensatesMostOfTheDistortionThroughACorner) {
   EXPECT_LT(on.trajectory.translation_rmse, 0.3 * off.trajectory.translation_rmse);
   EXPECT_LT(on.trajectory.rotation_rmse_deg, 0.3 * off.trajectory.rotation_rmse_deg);
   EXPECT_LT(on.trajectory.translation_rmse, 0.95 * once.trajectory.translation_rmse);
+}
+
+TEST(DeskewDrive, AGyroFollowsTheTurnRateWithinASweep) {
+  Poses gt;
+  const std::vector<PointCloud> scans = simulate(true, gt);
+  const DriveErrors lidar = track_drive(scans, gt, true), exact = track_drive(scans, gt, true, true, simulate_imu(true)),
+                    noisy = track_drive(scans, gt, true, true, simulate_imu(false));
+  for (const auto& [what, l, e, n] : {std::tuple{"odometry", lidar.odometry, exact.odometry, noisy.odometry},
+                                      std::tuple{"trajectory", lidar.trajectory, exact.trajectory, noisy.trajectory}})
+    std::printf("%s RPE m / deg: LiDAR only %.4f / %.4f, exact gyro %.4f / %.4f, gyro of default noise %.4f / %.4f\n", what,
+                l.translation_rmse, l.rotation_rmse_deg, e.translation_rmse, e.rotation_rmse_deg, n.translation_rmse,
+                n.rotation_rmse_deg);
+  EXPECT_LT(exact.trajectory.translation_rmse, 0.5 * lidar.trajectory.translation_rmse);
+  EXPECT_LT(exact.trajectory.rotation_rmse_deg, 0.5 * lidar.trajectory.rotation_rmse_deg);
+  EXPECT_LT(noisy.trajectory.translation_rmse, 0.5 * lidar.trajectory.translation_rmse);
 }
 
 // The first 110 sweeps of `highway` (every realism key, 26-28 m/s on a straight road between guard

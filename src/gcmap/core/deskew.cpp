@@ -34,13 +34,32 @@ struct PoseTable {
 
 constexpr double kMaxTableStep = 5e-4;  // rad between neighbouring poses of the table
 
+// Each point moved by pose(time, R, t), its sensor pose T_0_time; covariances rotated with it.
+template <typename PoseOf>
+void move_points(PointCloud& cloud, const PoseOf& pose) {
+  const bool covs = cloud.has_covs();
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, cloud.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+    // Drivers write many points with one time (a column of a spinning sensor): reuse its pose.
+    float last_t = std::nanf("");
+    Eigen::Matrix3f R = Eigen::Matrix3f::Identity();
+    Eigen::Vector3f t = Eigen::Vector3f::Zero();
+    for (size_t i = r.begin(); i != r.end(); ++i) {
+      if (cloud.times[i] != last_t) {
+        last_t = cloud.times[i];
+        pose(last_t, R, t);
+      }
+      cloud.points[i] = R * cloud.points[i] + t;
+      if (covs) cloud.covs[i] = R * cloud.covs[i] * R.transpose();
+    }
+  });
+}
+
 }  // namespace
 
 void deskew(PointCloud& cloud, const Vector6d& velocity, const Vector6d& acceleration, double anchor) {
   if (!cloud.has_times()) return;
   if (cloud.times.size() != cloud.size()) throw Error("deskew: times and points differ in number");
   if (!velocity.allFinite() || !acceleration.allFinite() || !std::isfinite(anchor)) throw Error("deskew: non-finite velocity");
-  const bool covs = cloud.has_covs();
   const auto T_anchor = [&](double t) {
     const double u = t - anchor;
     return se3_exp(u * velocity + 0.5 * u * u * acceleration);
@@ -67,26 +86,38 @@ void deskew(PointCloud& cloud, const Vector6d& velocity, const Vector6d& acceler
       table.t.push_back(T.translation().cast<float>());
     }
   }
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, cloud.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
-    // Drivers write many points with one time (a column of a spinning sensor): reuse its pose.
-    float last_t = std::nanf("");
-    Eigen::Matrix3f R = Eigen::Matrix3f::Identity();
-    Eigen::Vector3f t = Eigen::Vector3f::Zero();
-    for (size_t i = r.begin(); i != r.end(); ++i) {
-      if (cloud.times[i] != last_t) {
-        last_t = cloud.times[i];
-        if (tabled) {
-          table.at(last_t, R, t);
-        } else {
-          const Eigen::Isometry3d T_0_t = T_0(last_t);
-          R = T_0_t.linear().cast<float>();
-          t = T_0_t.translation().cast<float>();
-        }
-      }
-      cloud.points[i] = R * cloud.points[i] + t;
-      if (covs) cloud.covs[i] = R * cloud.covs[i] * R.transpose();
-    }
+  move_points(cloud, [&](float time, Eigen::Matrix3f& R, Eigen::Vector3f& t) {
+    if (tabled) return table.at(time, R, t);
+    const Eigen::Isometry3d T_0_t = T_0(time);
+    R = T_0_t.linear().cast<float>();
+    t = T_0_t.translation().cast<float>();
   });
+}
+
+Eigen::Isometry3d SweepPoses::at(double t) const {
+  if (T.empty()) throw Error("SweepPoses: no poses");
+  const double x = std::clamp((t - t0) / step, 0.0, static_cast<double>(T.size() - 1));
+  const size_t k = std::min(static_cast<size_t>(x), T.size() - (T.size() > 1 ? 2 : 1));
+  const double w = x - static_cast<double>(k);
+  if (T.size() == 1 || w == 0.0) return T[k];
+  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+  out.linear() = (1.0 - w) * T[k].linear() + w * T[k + 1].linear();
+  out.translation() = (1.0 - w) * T[k].translation() + w * T[k + 1].translation();
+  return out;
+}
+
+void deskew(PointCloud& cloud, const SweepPoses& poses) {
+  if (!cloud.has_times()) return;
+  if (cloud.times.size() != cloud.size()) throw Error("deskew: times and points differ in number");
+  if (poses.T.size() < 2 || !(poses.step > 0)) throw Error("deskew: a pose table needs two poses and a positive step");
+  PoseTable table;
+  table.t0 = static_cast<float>(poses.t0);
+  table.inv_step = static_cast<float>(1.0 / poses.step);
+  for (const Eigen::Isometry3d& T : poses.T) {
+    table.R.push_back(T.linear().cast<float>());
+    table.t.push_back(T.translation().cast<float>());
+  }
+  move_points(cloud, [&](float time, Eigen::Matrix3f& R, Eigen::Vector3f& t) { table.at(time, R, t); });
 }
 
 void deskew(PointCloud& cloud, const Eigen::Isometry3d& T_begin_end, double sweep_duration) {

@@ -4,6 +4,7 @@
 // one that changes linearly, over the sweep. Covariances (when present) are rotated with their
 // points; times are kept.
 #include <Eigen/Geometry>
+#include <vector>
 
 #include "gcmap/core/point_cloud.hpp"
 #include "gcmap/core/se3.hpp"
@@ -22,5 +23,15 @@ void deskew(PointCloud& cloud, const Vector6d& velocity, const Vector6d& acceler
 // T_begin_end: the sensor pose at time `sweep_duration` in the frame at time 0 (for example the
 // motion predicted between two scans, scaled to the sweep). No-op without times.
 void deskew(PointCloud& cloud, const Eigen::Isometry3d& T_begin_end, double sweep_duration);
+
+// Sensor poses T_0_t at t0 + k step, k = 0 .. T.size()-1, for a motion known as samples (an IMU's);
+// between two of them a pose is the linear blend of their rotations and translations (keep steps
+// small: 1 ms), beyond them the nearest is held.
+struct SweepPoses {
+  double t0 = 0.0, step = 1e-3;
+  std::vector<Eigen::Isometry3d> T;
+  Eigen::Isometry3d at(double t) const;
+};
+void deskew(PointCloud& cloud, const SweepPoses& poses);
 
 }  // namespace gcmap

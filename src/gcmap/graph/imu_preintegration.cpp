@@ -1,6 +1,7 @@
 #include "gcmap/graph/imu_preintegration.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <string>
 
 #include "gcmap/core/error.hpp"
@@ -9,6 +10,17 @@ namespace gcmap {
 
 Eigen::Matrix3d so3_right_jacobian(const Eigen::Vector3d& omega) { return so3_left_jacobian(-omega); }
 Eigen::Matrix3d so3_right_jacobian_inverse(const Eigen::Vector3d& omega) { return so3_left_jacobian_inverse(-omega); }
+
+Eigen::Isometry3d ImuConfig::T_lidar_imu() const {
+  constexpr double kDeg = M_PI / 180.0;
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = (Eigen::AngleAxisd(yaw_deg * kDeg, Eigen::Vector3d::UnitZ()) *
+                Eigen::AngleAxisd(pitch_deg * kDeg, Eigen::Vector3d::UnitY()) *
+                Eigen::AngleAxisd(roll_deg * kDeg, Eigen::Vector3d::UnitX()))
+                   .toRotationMatrix();
+  T.translation() = Eigen::Vector3d(x, y, z);
+  return T;
+}
 
 NavState NavState::retract(const Vector15d& d) const {
   NavState s;

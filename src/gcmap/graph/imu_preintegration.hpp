@@ -25,13 +25,19 @@ struct ImuNoise {
   double accel_bias_walk = 3.0e-4;  // m/s^3/sqrt(Hz)
 };
 
-// The future `imu:` config section (mapping/config.cpp owns the keys): how the IMU sits on the
-// LiDAR, its clock, its noise and the gravity it feels.
+// The `imu:` config section (mapping/config.cpp owns the keys): whether an IMU the input carries is
+// used, how it sits on the LiDAR, its clock and its noise.
 struct ImuConfig {
-  Eigen::Isometry3d T_lidar_imu = Eigen::Isometry3d::Identity();  // a point in the IMU frame to the LiDAR frame
-  double time_offset = 0.0;                                       // s: an IMU stamp minus the LiDAR's stamp of the same instant
+  bool use = true;
+  // The IMU frame in the LiDAR frame: a translation (m) and roll, pitch, yaw (deg, applied in that
+  // order about the LiDAR's fixed axes).
+  double x = 0.0, y = 0.0, z = 0.0, roll_deg = 0.0, pitch_deg = 0.0, yaw_deg = 0.0;
+  double time_offset = 0.0;  // s: an IMU stamp minus the LiDAR's stamp of the same instant
   ImuNoise noise;
   double gravity = kStandardGravity;  // m/s^2, along -z of the world
+
+  // A point in the IMU frame to the LiDAR frame.
+  Eigen::Isometry3d T_lidar_imu() const;
 };
 
 struct ImuBias {

@@ -304,6 +304,65 @@ void decide_gnss(InputAssumptions& a, const InputOptions& o) {
   state_gnss(a, a.gnss_path + (o.gnss_file.empty() ? ", found beside the scans" : ", --gnss"));
 }
 
+void take_imu(InputAssumptions& a, ImuStream stream, const std::string& path, const std::string& how) {
+  a.imu_path = path;
+  const bool timed = a.deskew.value == "on";
+  a.imu = {timed ? "gyro deskews each sweep and predicts its rotation (its bias estimated from the registration); "
+                   "accelerometer not used yet"
+                 : "read, not used: only the deskewing uses it, and it is off",
+           stream.describe(path) + ", " + how};
+  if (!a.stamps.empty() && (stream.samples.back().stamp < a.stamps.front() || stream.samples.front().stamp > a.stamps.back()))
+    throw Error(path + ": the IMU stamps (" + std::to_string(stream.samples.front().stamp) + " to " +
+                std::to_string(stream.samples.back().stamp) + " s) do not overlap the scans' (" + std::to_string(a.stamps.front()) +
+                " to " + std::to_string(a.stamps.back()) + " s): another clock? (imu.time_offset, --no-imu)");
+  a.imu_samples = std::move(stream.samples);
+}
+
+// A bag's IMU topic: --imu-topic, else its only one; several: an Error listing them.
+void decide_bag_imu(InputAssumptions& a, const InputOptions& o) {
+  const QuietLog quiet;
+  const std::unique_ptr<BagReader> bag = open_bag(a.input);
+  std::string topic = o.imu_topic, how = "--imu-topic";
+  if (topic.empty()) {
+    const std::vector<std::string> topics = imu_topics(*bag);
+    if (topics.empty()) return;
+    if (topics.size() > 1) {
+      std::string names;
+      for (const std::string& t : topics) names += (names.empty() ? "" : ", ") + t;
+      throw Error(a.input + ": " + std::to_string(topics.size()) + " sensor_msgs/Imu topics (" + names +
+                  "): choose one with --imu-topic, or --no-imu");
+    }
+    topic = topics.front(), how = "the bag's only sensor_msgs/Imu topic";
+  }
+  take_imu(a, read_bag_imu(*bag, topic), bag->path() + ": topic " + topic, how);
+}
+
+// --no-imu: none; --imu, else --imu-topic, else imu.txt beside the scans as times.txt is (bags:
+// beside the bag), else a bag's only IMU topic.
+void decide_imu(InputAssumptions& a, const InputOptions& o) {
+  const bool bag = a.layout == InputLayout::bag;
+  if (!o.imu_topic.empty() && (!bag || !o.imu_file.empty()))
+    throw Error("--imu-topic: " + std::string(bag ? "give --imu or --imu-topic, not both" : "the input is not a bag"));
+  a.imu = {"none", bag ? "no sensor_msgs/Imu topic in the bag, no imu.txt beside it and no --imu"
+                       : "no imu.txt beside the scans and no --imu"};
+  if (!o.use_imu) {
+    a.imu = {"none", "imu.use is off (--no-imu)"};
+    return;
+  }
+  if (!o.imu_file.empty() && !present(o.imu_file)) throw Error(o.imu_file + ": --imu: no such file");
+  std::vector<fs::path> candidates;
+  if (!o.imu_file.empty()) candidates = {o.imu_file};
+  else if (bag && o.imu_topic.empty()) candidates = {clean(a.input).parent_path() / "imu.txt"};
+  else if (!bag) candidates = {fs::path(a.root) / "imu.txt", fs::path(a.scans_dir) / "imu.txt", fs::path(a.scans_dir).parent_path() / "imu.txt"};
+  for (const fs::path& p : candidates) {
+    if (!present(p)) continue;
+    const std::string path = clean(p).string();
+    take_imu(a, read_imu_txt(path), path, o.imu_file.empty() ? "found beside the scans" : "--imu");
+    return;
+  }
+  if (bag) decide_bag_imu(a, o);
+}
+
 }  // namespace
 
 InputAssumptions decide_input(const std::string& input, const InputOptions& options) {
@@ -313,6 +372,7 @@ InputAssumptions decide_input(const std::string& input, const InputOptions& opti
   else decide_folder(a, options);
   decide_deskew(a, options);
   decide_gnss(a, options);
+  decide_imu(a, options);
   return a;
 }
 
@@ -329,6 +389,7 @@ std::vector<std::string> InputAssumptions::lines() const {
   add("beam calibration", beam_calibration);
   add("labels", labels);
   add("gnss", gnss);
+  add("imu", imu);
   for (const std::string& w : warnings) out.push_back("warning: " + w);
   return out;
 }
@@ -358,6 +419,8 @@ Json InputAssumptions::to_json() const {
   add("labels", labels);
   add("gnss", gnss);
   if (!gnss_path.empty()) j["gnss_file"] = gnss_path;
+  add("imu", imu);
+  if (!imu_path.empty()) j["imu_file"] = imu_path;
   Json w = Json::array();
   for (const std::string& s : warnings) w.push_back(s);
   j["warnings"] = w;

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "gcmap/io/gnss_io.hpp"
+#include "gcmap/io/imu_io.hpp"
 #include "gcmap/io/json.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 
@@ -29,6 +30,9 @@ struct InputOptions {
   int estimate_elevation_frames = 0;      // calibration.frames when calibration.estimate_elevation, else 0
   std::string gnss_file;                  // --gnss: the fixes file, instead of gnss.txt beside the scans
   std::string gnss_topic;                 // --gnss-topic: a bag's NavSatFix topic (default: its only one)
+  bool use_imu = true;                    // imu.use (--no-imu: false)
+  std::string imu_file;                   // --imu: the IMU samples file, instead of imu.txt beside the scans
+  std::string imu_topic;                  // --imu-topic: a bag's sensor_msgs/Imu topic (default: its only one)
 };
 
 // One assumption: what is assumed and why, in words.
@@ -52,7 +56,9 @@ struct InputAssumptions {
   bool kitti_correction = false;
   std::string gnss_path;            // gnss.txt, --gnss, or "BAG: topic T"; empty: no GNSS
   std::vector<GnssFix> gnss_fixes;  // as read (io/gnss_io.hpp)
-  Assumed layout_text, stamps_text, point_times_text, deskew, elevation_correction, beam_calibration, labels, gnss;
+  std::string imu_path;             // imu.txt, --imu, or "BAG: topic T"; empty: no IMU used
+  std::vector<ImuSample> imu_samples;
+  Assumed layout_text, stamps_text, point_times_text, deskew, elevation_correction, beam_calibration, labels, gnss, imu;
   std::vector<std::string> warnings;  // stated in the first lines and in stats.json
 
   // "assumption: value (evidence)" lines for the start of a run.

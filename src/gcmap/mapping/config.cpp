@@ -290,6 +290,31 @@ void visit_loop(Config& c, Visitor& v) {
 }
 
 template <typename Config, typename Visitor>
+void visit_imu(Config& c, Visitor& v) {
+  v("imu", "use", c.imu.use,
+    KeyDoc{"-", 0, 0, "odometry/",
+           "Use the IMU the input carries (imu.txt beside the scans, --imu, a bag's sensor_msgs/Imu topic): its gyro deskews "
+           "each sweep and predicts its rotation. false: as without one (also --no-imu)."});
+  v("imu", "x", c.imu.x, KeyDoc{"m", -10, 10, "odometry/", "The IMU's origin in the LiDAR frame (T_lidar_imu): x."});
+  v("imu", "y", c.imu.y, KeyDoc{"m", -10, 10, "odometry/", "The IMU's origin in the LiDAR frame: y."});
+  v("imu", "z", c.imu.z, KeyDoc{"m", -10, 10, "odometry/", "The IMU's origin in the LiDAR frame: z."});
+  v("imu", "roll_deg", c.imu.roll_deg,
+    KeyDoc{"deg", -180, 180, "odometry/",
+           "The IMU frame's rotation in the LiDAR frame (T_lidar_imu): roll, pitch, yaw about the LiDAR's fixed x, y, z axes, in "
+           "that order."});
+  v("imu", "pitch_deg", c.imu.pitch_deg,
+    KeyDoc{"deg", -90, 90, "odometry/", "The IMU frame's rotation in the LiDAR frame: pitch (see roll_deg)."});
+  v("imu", "yaw_deg", c.imu.yaw_deg,
+    KeyDoc{"deg", -180, 180, "odometry/", "The IMU frame's rotation in the LiDAR frame: yaw (see roll_deg)."});
+  v("imu", "time_offset", c.imu.time_offset,
+    KeyDoc{"s", -1, 1, "odometry/", "An IMU stamp minus the LiDAR's stamp of the same instant (the IMU clock's lead)."});
+  v("imu", "gyro_noise", c.imu.noise.gyro_noise,
+    KeyDoc{"rad/s/sqrt(Hz)", 0, 1, "odometry/",
+           "Gyro white noise density (default: a MEMS IMU built into a LiDAR, inflated for vibration). A sweep takes the gyro's "
+           "change of the turn rate only as far as it stands above this noise."});
+}
+
+template <typename Config, typename Visitor>
 void visit_gnss(Config& c, Visitor& v) {
   v("gnss", "lever_arm_x", c.gnss.lever_arm_x,
     KeyDoc{"m", -100, 100, "mapping/", "The GNSS antenna in the LiDAR (sensor) frame: x."});
@@ -356,6 +381,7 @@ void visit_localize_merge_output(Config& c, Visitor& v) {
   v("merge", "max_iterations", c.merge.max_iterations,
     KeyDoc{"-", 1, 1000, "session/", "Levenberg-Marquardt iterations of the joint optimization of all sessions, at most."});
   visit_gnss(c, v);
+  visit_imu(c, v);
   v("output", "map_resolution", c.output.map_resolution,
     KeyDoc{"m", 0.01, 100, "apps/gcmap/", "Voxel size of the written map (map.ply, map.pcd)."});
   v("output", "pcd", c.output.pcd, KeyDoc{"-", 0, 0, "apps/gcmap/", "Also write the map as map.pcd, beside map.ply."});

@@ -9,6 +9,7 @@
 #include <variant>
 #include <vector>
 
+#include "gcmap/graph/imu_preintegration.hpp"
 #include "gcmap/graph/sparse_solver.hpp"
 #include "gcmap/loop/loop_closure.hpp"
 #include "gcmap/odometry/odometry.hpp"
@@ -157,6 +158,7 @@ struct MappingConfig {
   LocalizationConfig localize;
   MergeConfig merge;
   GnssConfig gnss;
+  ImuConfig imu;
   OutputConfig output;
   QualityConfig quality;
 

@@ -65,7 +65,7 @@ MappingPipeline::MappingPipeline(const MappingConfig& config, std::shared_ptr<Li
     : config_(config),
       backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
       options_(with_elevation_calibration(std::move(options), config.preprocess)),
-      odometry_(config.odometry, config.preprocess, backend_),
+      odometry_(config.odometry, config.preprocess, config.imu, backend_),
       mapper_(config, backend_) {}
 
 PreparedScan MappingPipeline::prepare(PointCloud raw, double stamp) const {
@@ -103,6 +103,13 @@ PreparedScan prepare_scan(PointCloud raw, double stamp, const PreprocessConfig& 
   return out;
 }
 
+void MappingPipeline::add_imu(const ImuSample& sample) {
+  if (finished_) throw Error("add_imu: the pipeline is finished");
+  if (!config_.imu.use) return;
+  odometry_.add_imu(sample);
+  ++imu_samples_;
+}
+
 Frame MappingPipeline::add_scan(PointCloud scan, double stamp, std::optional<Eigen::Isometry3d> T_odom) {
   if (finished_) throw Error("add_scan: the pipeline is finished");
   if (!std::isfinite(stamp)) throw Error("add_scan: the stamp is not a finite number");
@@ -134,6 +141,7 @@ MappingPipeline::Tracked MappingPipeline::track_frame(PreparedScan scan, std::op
   f.odometry_failed = e.failed;
   f.registration = e.quality;
   f.deskew_shift = e.deskew_shift;
+  gyro_deskewed_ += e.gyro ? 1 : 0;
   frame_figures_.push_back({e.quality, e.deskew_shift, scan.cloud != nullptr});
   if (e.revised) odometry_poses_[e.revised->frame] = e.revised->T_world_frame;
   if (f.odometry_failed) {
@@ -180,6 +188,9 @@ PipelineStats MappingPipeline::stats() const {
   s.frames = stamps_.size();
   s.unusable = unusable_scans_ + unusable_frames_;
   s.odometry_failures = odometry_failures_;
+  s.imu_samples = imu_samples_;
+  s.gyro_deskewed = gyro_deskewed_;
+  s.gyro_bias = odometry_.gyro_bias();
   s.preprocess = preprocess_ms_;
   s.odometry = odometry_ms_;
   s.mapper = mapper_.stats();

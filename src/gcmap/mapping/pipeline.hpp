@@ -45,6 +45,9 @@ struct Frame {
 struct PipelineStats {
   size_t frames = 0, unusable = 0;
   size_t odometry_failures = 0;      // frames with Frame::odometry_failed
+  size_t imu_samples = 0;            // IMU samples given (add_imu)
+  size_t gyro_deskewed = 0;          // sweeps deskewed with the gyro's rotation
+  Eigen::Vector3d gyro_bias = Eigen::Vector3d::Zero();  // rad/s, LiDAR frame, the last estimate
   TimingStats preprocess, odometry;  // preprocess overlaps the other stages in run()
   MapperStats mapper;
   double seconds = 0.0;  // from construction to finish()
@@ -88,6 +91,8 @@ class MappingPipeline {
   // called after each iteration of the final optimization.
   void finish(std::optional<int> max_final_iterations = std::nullopt, const IterationCallback& on_iteration = {});
   bool finished() const { return finished_; }
+  // An IMU sample (SweepOdometry::add_imu), before the scans it spans; ignored unless imu.use.
+  void add_imu(const ImuSample& sample);
   // GNSS fixes for the global graph (Mapper::set_gnss), before the first scan.
   void set_gnss(std::vector<GnssPosition> fixes) { mapper_.set_gnss(std::move(fixes)); }
 
@@ -152,7 +157,8 @@ class MappingPipeline {
   std::vector<FrameStatus> statuses_;
   std::vector<FrameFigures> frame_figures_;  // track_frame's
   std::vector<Eigen::Isometry3d> odometry_poses_;
-  size_t unusable_scans_ = 0, odometry_failures_ = 0;  // track_frame's
+  size_t unusable_scans_ = 0, odometry_failures_ = 0, gyro_deskewed_ = 0;  // track_frame's
+  size_t imu_samples_ = 0;
   size_t unusable_frames_ = 0;                         // map_frame's
   TimingStats preprocess_ms_, odometry_ms_;
   Stopwatch clock_;

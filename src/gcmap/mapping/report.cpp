@@ -74,6 +74,14 @@ Json stats_json(const MappingPipeline& pipeline) {
   stats["frames"] = ps.frames;
   stats["unusable_scans"] = ps.unusable;
   stats["odometry_failures"] = ps.odometry_failures;
+  if (ps.imu_samples > 0) {
+    Json imu = Json::object(), bias = Json::array();
+    for (int i = 0; i < 3; ++i) bias.push_back(ps.gyro_bias[i]);
+    imu["samples"] = ps.imu_samples;
+    imu["gyro_deskewed_sweeps"] = ps.gyro_deskewed;
+    imu["gyro_bias_rad_s"] = bias;  // LiDAR frame, the estimate at the end
+    stats["imu"] = imu;
+  }
   stats["seconds"] = ps.seconds;
   stats["frames_per_second"] = ps.seconds > 0 ? ps.frames / ps.seconds : 0.0;
   stats["device"] = pipeline.backend().name();

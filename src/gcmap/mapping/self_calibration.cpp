@@ -54,7 +54,7 @@ void prepare_item(Item& item, const MappingConfig& config, const PipelineOptions
 OdometryPass run_odometry(ScanSource& source, const MappingConfig& config, const PipelineOptions& options,
                           const std::function<void(int)>& on_frame, int first_frame, const std::atomic<bool>* stop) {
   OdometryPass pass;
-  SweepOdometry odometry(config.odometry, config.preprocess, std::make_shared<CpuBackend>());
+  SweepOdometry odometry(config.odometry, config.preprocess, ImuConfig{}, std::make_shared<CpuBackend>());
   int next = 0;
   tbb::parallel_pipeline(
       4,

@@ -1,6 +1,7 @@
 #include "gcmap/odometry/sweep_odometry.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 #include "gcmap/core/deskew.hpp"
 #include "gcmap/core/se3.hpp"
@@ -27,13 +28,96 @@ double mean_shift(const PointCloud& before, const PointCloud& after) {
 
 }  // namespace
 
-SweepOdometry::SweepOdometry(const OdometryConfig& config, const PreprocessConfig& preprocess,
+SweepOdometry::SweepOdometry(const OdometryConfig& config, const PreprocessConfig& preprocess, const ImuConfig& imu,
                              std::shared_ptr<LinearizationBackend> backend)
     : config_(config),
       backend_(std::move(backend)),
       deskew_(preprocess.deskew),
       redeskew_(preprocess.redeskew),
-      odometry_(config_, backend_) {}
+      odometry_(config_, backend_),
+      use_imu_(imu.use),
+      gyro_noise_(imu.noise.gyro_noise),
+      gyro_(imu) {}
+
+void SweepOdometry::add_imu(const ImuSample& sample) {
+  if (use_imu_) gyro_.add(sample);
+}
+
+std::shared_ptr<const SweepOdometry::GyroSweep> SweepOdometry::gyro_sweep(const PointCloud& cloud, double stamp) const {
+  const auto [lo, hi] = std::minmax_element(cloud.times.begin(), cloud.times.end());
+  const double first = std::min(0.0, static_cast<double>(*lo)), last = std::max(0.0, static_cast<double>(*hi));
+  if (!last_ || !gyro_.covers(std::min(last_->second, stamp + first), stamp + last)) return nullptr;
+  auto g = std::make_shared<GyroSweep>();
+  // A grid through the stamp (t = 0), so that R_stamp_stamp is exactly the identity.
+  const long before = static_cast<long>(std::ceil(-first / g->step)), after = static_cast<long>(std::ceil(last / g->step));
+  g->t0 = -static_cast<double>(before) * g->step;
+  g->R = gyro_.rotations(stamp + g->t0, g->step, static_cast<size_t>(before + after + 1));
+  const Eigen::Matrix3d R_stamp_t0 = g->R[static_cast<size_t>(before)].transpose();
+  for (Eigen::Matrix3d& R : g->R) R = R_stamp_t0 * R;
+  return g;
+}
+
+SweepPoses SweepOdometry::SweepMotion::poses() const {
+  SweepPoses out;
+  out.t0 = gyro->t0, out.step = gyro->step;
+  out.T.resize(gyro->R.size(), Eigen::Isometry3d::Identity());
+  const size_t zero = static_cast<size_t>(std::lround(-gyro->t0 / gyro->step));
+  // The body-frame linear velocity at time t, carried along by the gyro's rotation.
+  const auto v = [&](double t) -> Eigen::Vector3d { return velocity.tail<3>() + (t - anchor) * acceleration.tail<3>(); };
+  const auto t_of = [&](size_t k) { return gyro->t0 + gyro->step * static_cast<double>(k); };
+  const std::vector<Eigen::Vector3d> d = gyro_deviation();
+  for (size_t k = 0; k < out.T.size(); ++k) out.T[k].linear() = T_stamp_model(t_of(k)).linear() * so3_exp(gyro_weight * d[k]);
+  for (size_t k = zero + 1; k < out.T.size(); ++k)
+    out.T[k].translation() =
+        out.T[k - 1].translation() + 0.5 * gyro->step * (out.T[k - 1].linear() * v(t_of(k - 1)) + out.T[k].linear() * v(t_of(k)));
+  for (size_t k = zero; k-- > 0;)
+    out.T[k].translation() =
+        out.T[k + 1].translation() - 0.5 * gyro->step * (out.T[k + 1].linear() * v(t_of(k + 1)) + out.T[k].linear() * v(t_of(k)));
+  return out;
+}
+
+std::vector<Eigen::Vector3d> SweepOdometry::SweepMotion::gyro_deviation() const {
+  std::vector<Eigen::Vector3d> d(gyro->R.size());
+  for (size_t k = 0; k < d.size(); ++k) {
+    const double t = gyro->t0 + gyro->step * static_cast<double>(k);
+    d[k] = so3_log(T_stamp_model(t).linear().transpose() * gyro->R[k] * so3_exp(t * gyro_correction));
+  }
+  return d;
+}
+
+void SweepOdometry::SweepMotion::weigh_gyro(double gyro_noise) {
+  double signal = 0.0, noise = 0.0;
+  const std::vector<Eigen::Vector3d> d = gyro_deviation();
+  for (size_t k = 0; k < d.size(); ++k) {
+    signal += d[k].squaredNorm();
+    // Three axes of a random walk from the stamp.
+    noise += 3.0 * gyro_noise * gyro_noise * std::abs(gyro->t0 + gyro->step * static_cast<double>(k));
+  }
+  gyro_weight = signal > noise ? (signal - noise) / signal : 0.0;
+}
+
+void SweepOdometry::SweepMotion::deskew(PointCloud& cloud) const {
+  if (gyro) gcmap::deskew(cloud, poses());
+  else gcmap::deskew(cloud, velocity, acceleration, anchor);
+}
+
+Eigen::Vector3d SweepOdometry::gyro_correction(const Eigen::Isometry3d& T_world_mean, double time) const {
+  const double span = time - reference_.stamp;
+  if (span < 0.025 || !gyro_.covers(reference_.stamp, time)) return Eigen::Vector3d::Zero();
+  const Eigen::Matrix3d R_registered = reference_.pose.linear().transpose() * T_world_mean.linear();
+  return so3_log(gyro_.rotation(reference_.stamp, time).transpose() * R_registered) / span;
+}
+
+void SweepOdometry::observe_gyro(const SweepReference& reference) {
+  // Over about a second the registration's error is small against the bias's integral.
+  constexpr double kWindow = 1.0;
+  gyro_references_.push_back(reference);
+  while (gyro_references_.size() > 2 && gyro_references_[1].stamp <= reference.stamp - kWindow) gyro_references_.pop_front();
+  const SweepReference& from = gyro_references_.front();
+  if (reference.stamp - from.stamp >= 0.5 * kWindow)
+    gyro_.observe(from.stamp, from.pose.linear(), reference.stamp, reference.pose.linear());
+  gyro_.forget_before(from.stamp - kWindow);
+}
 
 SweepEstimate SweepOdometry::track(const std::shared_ptr<PointCloud>& cloud, double stamp,
                                    const std::optional<Eigen::Isometry3d>& T_odom) {
@@ -105,8 +189,10 @@ std::optional<SweepRevision> SweepOdometry::revise_previous(const SweepReference
     shift = std::max(shift, D.translation().norm() + 50.0 * rotation_angle(D));
   }
   if (shift < 0.01) return std::nullopt;
+  m.gyro = p.motion.gyro, m.gyro_correction = p.motion.gyro_correction;
+  if (m.gyro) m.weigh_gyro(gyro_noise_);
   auto cloud = std::make_shared<PointCloud>(p.raw);
-  deskew(*cloud, m.velocity, m.acceleration, m.anchor);
+  m.deskew(*cloud);
   // The frame's pose moves onto the curve as well: the keyframe's starting point in the local
   // optimization (kept at the pose it was tracked at, the drive came out less accurate).
   const SweepRevision r{p.frame, cloud, T_world_frame};
@@ -125,17 +211,19 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
   SweepEstimate e;
   Eigen::Isometry3d T = odometry_.predict(stamp);
   const Odometry::Guess kind = odometry_.guess_kind(stamp);
+  const std::shared_ptr<const GyroSweep> gyro = gyro_sweep(raw, stamp);
+  if (gyro) T.linear() = last_->first.linear() * gyro_.rotation(last_->second, stamp);
   MeanVelocity mean{se3_log(last_->first.inverse() * T) / dt, stamp - 0.5 * dt};
-  SweepMotion m = sweep_motion(mean, stamp);
+  SweepMotion m = sweep_motion(mean, stamp, gyro);
   for (int pass = 0; pass < 4; ++pass) {
     *cloud = raw;
-    deskew(*cloud, m.velocity, m.acceleration, m.anchor);
+    m.deskew(*cloud);
     const Eigen::Isometry3d T_world_stamp =
         odometry_.estimate(*cloud, T, pass == 0 ? kind : Odometry::Guess::steady, &e.failed, &e.quality);
     if (pass == 0 && kind == Odometry::Guess::rest) {
       // Registered undeskewed: only a first velocity, between the stamps.
       mean.velocity = se3_log(last_->first.inverse() * T_world_stamp) / dt;
-      m = sweep_motion(mean, stamp);
+      m = sweep_motion(mean, stamp, gyro);
       T = T_world_stamp;
       if (first_ && !e.failed) e.revised = SweepRevision{first_->frame, restart_from_first(mean.velocity), first_->T};
       continue;
@@ -143,17 +231,20 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
     const Eigen::Isometry3d T_world_mean = T_world_stamp * m.T_stamp(t_mean);
     const bool degenerate = e.quality.conditioning() < kDegenerateConditioning;
     if (auto registered = registered_mean(T_world_mean, stamp + t_mean, degenerate)) mean = *registered;
-    m = sweep_motion(mean, stamp);
+    m = sweep_motion(mean, stamp, gyro);
+    if (gyro) m.gyro_correction = gyro_correction(T_world_mean, stamp + t_mean), m.weigh_gyro(gyro_noise_);
     T = T_world_mean * m.T_stamp(t_mean).inverse();
   }
   *cloud = raw;
-  deskew(*cloud, m.velocity, m.acceleration, m.anchor);
+  m.deskew(*cloud);
   e.deskew_shift = mean_shift(raw, *cloud);
   odometry_.accept(cloud, T, stamp, e.failed);
   reference_ = {T * m.T_stamp(t_mean), stamp + t_mean};
   if (e.failed) {  // placed by the prediction: no velocity measured
     previous_mean_.reset(), before_previous_.reset(), previous_.reset();
+    gyro_references_.clear();
   } else {
+    if (gyro) observe_gyro(reference_);
     previous_mean_ = mean;
     if (auto r = revise_previous(reference_)) e.revised = std::move(r);
     before_previous_.reset();
@@ -162,6 +253,7 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
   }
   e.T_world_frame = T;
   e.deskewed = true;
+  e.gyro = gyro != nullptr;
   return e;
 }
 
@@ -183,8 +275,10 @@ std::optional<SweepOdometry::MeanVelocity> SweepOdometry::registered_mean(const 
   return MeanVelocity{0.5 * (last->velocity + two->velocity), 0.5 * (last->time + two->time)};
 }
 
-SweepOdometry::SweepMotion SweepOdometry::sweep_motion(const MeanVelocity& mean, double stamp) const {
+SweepOdometry::SweepMotion SweepOdometry::sweep_motion(const MeanVelocity& mean, double stamp,
+                                                       std::shared_ptr<const GyroSweep> gyro) const {
   SweepMotion m;
+  m.gyro = std::move(gyro);
   const double between = previous_mean_ ? mean.time - previous_mean_->time : 0.0;
   // Half the acceleration the two give: in full it fed registration noise back into the next sweep
   // and could swing out of a fast corner and diverge. Mean velocities closer

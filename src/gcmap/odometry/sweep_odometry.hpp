@@ -1,9 +1,14 @@
 #pragma once
 // The odometry front end the pipeline and the localizer share: scan-to-model registration
 // (Odometry) with motion compensation of sweeps that carry per-point times (preprocess.deskew).
+#include <deque>
 #include <memory>
 #include <optional>
+#include <vector>
 
+#include "gcmap/core/deskew.hpp"
+#include "gcmap/graph/imu_preintegration.hpp"
+#include "gcmap/odometry/gyro_track.hpp"
 #include "gcmap/odometry/odometry.hpp"
 #include "gcmap/odometry/preprocess_scan.hpp"
 
@@ -20,6 +25,7 @@ struct SweepRevision {
 struct SweepEstimate {
   Eigen::Isometry3d T_world_frame = Eigen::Isometry3d::Identity();  // at the scan stamp
   bool deskewed = false;
+  bool gyro = false;            // deskewed with the IMU's rotation rates
   bool failed = false;          // registration rejected (see Odometry::estimate): placed by the prediction
   bool lost = false;            // the last of failed frames in a row: the next usable frame starts a new model
   RegistrationQuality quality;  // of the registration that placed the frame
@@ -32,7 +38,13 @@ struct SweepEstimate {
 class SweepOdometry {
  public:
   // Reads preprocess.deskew and preprocess.redeskew of the preprocess section.
-  SweepOdometry(const OdometryConfig& config, const PreprocessConfig& preprocess, std::shared_ptr<LinearizationBackend> backend);
+  SweepOdometry(const OdometryConfig& config, const PreprocessConfig& preprocess, const ImuConfig& imu,
+                std::shared_ptr<LinearizationBackend> backend);
+
+  // An IMU sample (its clock and frame, see ImuConfig), before the scans it spans; ignored unless
+  // imu.use. Sweeps the samples span are deskewed with the gyro's rotation.
+  void add_imu(const ImuSample& sample);
+  const Eigen::Vector3d& gyro_bias() const { return gyro_.bias(); }  // rad/s, LiDAR frame
 
   // The pose of a prepared scan (null: unusable, placed by the prediction) at `stamp`, stamps
   // non-decreasing. A scan with per-point times is deskewed in place into the sensor frame at the
@@ -49,20 +61,43 @@ class SweepOdometry {
     Vector6d velocity = Vector6d::Zero();
     double time = 0.0;
   };
+  // The gyro's rotations R_stamp_t over a sweep, at t = t0 + k step (s after the stamp).
+  struct GyroSweep {
+    double t0 = 0.0, step = 1e-3;
+    std::vector<Eigen::Matrix3d> R;
+  };
   // The motion over a sweep: velocity at `anchor` (s after the stamp), changing by acceleration per
-  // second, a quadratic in the tangent space there (see deskew).
+  // second, a quadratic in the tangent space there (see deskew). With a gyro, the rotation is the
+  // gyro's, plus a constant rate that makes it agree with the registered rotation since the last
+  // sweep, and the translation follows it with the body-frame linear velocity of that quadratic.
+  // Where the gyro's deviation from the quadratic's rotation is hardly above its noise (a steady
+  // drive), that deviation is shrunk towards zero by gyro_weight (see weigh_gyro).
   struct SweepMotion {
     Vector6d velocity = Vector6d::Zero(), acceleration = Vector6d::Zero();
     double anchor = 0.0;
+    std::shared_ptr<const GyroSweep> gyro;
+    Eigen::Vector3d gyro_correction = Eigen::Vector3d::Zero();  // rad/s
+    double gyro_weight = 1.0;
     Eigen::Isometry3d T_anchor(double t) const {
       const double u = t - anchor;
       return se3_exp(u * velocity + 0.5 * u * u * acceleration);
     }
-    Eigen::Isometry3d T_stamp(double t) const { return T_anchor(0.0).inverse() * T_anchor(t); }
+    Eigen::Isometry3d T_stamp_model(double t) const { return T_anchor(0.0).inverse() * T_anchor(t); }
+    Eigen::Isometry3d T_stamp(double t) const { return gyro ? poses().at(t) : T_stamp_model(t); }
+    SweepPoses poses() const;  // with a gyro only
+    void deskew(PointCloud& cloud) const;
+    // The gyro's rotation (corrected) against the quadratic's at each entry of the gyro's table.
+    std::vector<Eigen::Vector3d> gyro_deviation() const;
+    // gyro_weight = (S - N) / S, at least 0: S the mean squared deviation, N what the gyro's white
+    // noise (density gyro_noise, rad/s/sqrt(Hz)) alone would give, a random walk from the stamp.
+    void weigh_gyro(double gyro_noise);
   };
+  // The gyro's rotations over the sweep of `cloud` at `stamp` and since the last frame, or null.
+  std::shared_ptr<const GyroSweep> gyro_sweep(const PointCloud& cloud, double stamp) const;
+
   // `mean` with the previous sweep's mean velocity: linear in time (constant without one), at the
   // stamp (anchoring it at the mean point time instead made no difference).
-  SweepMotion sweep_motion(const MeanVelocity& mean, double stamp) const;
+  SweepMotion sweep_motion(const MeanVelocity& mean, double stamp, std::shared_ptr<const GyroSweep> gyro) const;
   // The mean velocity up to `time` (absolute), where the sweep's registration put T_world_mean:
   // since the last sweep's reference, for a degenerate registration blended with that since the
   // one before (none: too close).
@@ -78,6 +113,12 @@ class SweepOdometry {
     Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
     double stamp = 0.0;  // absolute
   };
+  // The rate that makes the gyro's rotation from the last sweep's reference to `time`, where the
+  // registration put T_world_mean, agree with the registered one: the gyro's noise and bias
+  // integrated over that window, spread evenly (zero when too close).
+  Eigen::Vector3d gyro_correction(const Eigen::Isometry3d& T_world_mean, double time) const;
+  // The registered rotations over the last second refine the gyro's bias.
+  void observe_gyro(const SweepReference& reference);
   // With the sweeps before and after it registered, the previous sweep is deskewed again by the
   // quadratic through the three references (its motion interpolated, no longer extrapolated).
   std::optional<SweepRevision> revise_previous(const SweepReference& next);
@@ -86,6 +127,10 @@ class SweepOdometry {
   std::shared_ptr<LinearizationBackend> backend_;
   bool deskew_, redeskew_;
   Odometry odometry_;
+  bool use_imu_;
+  double gyro_noise_;
+  GyroTrack gyro_;
+  std::deque<SweepReference> gyro_references_;  // the registered sweeps of the last second, in a row
   int frames_ = 0;
   struct FirstSweep {
     PointCloud raw;

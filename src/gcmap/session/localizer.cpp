@@ -27,7 +27,7 @@ Localizer::Localizer(std::shared_ptr<const PriorMap> prior, const MappingConfig&
       config_(config),
       backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
       options_(with_elevation_calibration(std::move(options), config.preprocess)),
-      odometry_(config_.odometry, config_.preprocess, backend_) {
+      odometry_(config_.odometry, config_.preprocess, config_.imu, backend_) {
   config_.validate();
   if (!prior_ || prior_->submaps.empty()) throw Error("localize: the prior map has no submaps");
   for (const Submap& s : prior_->submaps) {
@@ -140,7 +140,7 @@ LocalizedFrame Localizer::add_scan(PointCloud scan, double stamp) {
     // Across a gap dead reckoning would place the frame anywhere, and the map may well hold it
     // there too (streets repeat); the odometry's model lies behind. Both start again: the next
     // pose comes from the map's places.
-    odometry_ = SweepOdometry(config_.odometry, config_.preprocess, backend_);
+    odometry_ = SweepOdometry(config_.odometry, config_.preprocess, config_.imu, backend_);
     initial_.reset();
     localized_once_ = false;
     lost_since_ = 0;

@@ -1,0 +1,84 @@
+#include "gcmap/odometry/gyro_track.hpp"
+
+#include <algorithm>
+#include <string>
+
+#include "gcmap/core/error.hpp"
+#include "gcmap/core/se3.hpp"
+
+namespace gcmap {
+
+namespace {
+
+// Each registered rotation moves the bias this fraction of the way to agreeing with it: the
+// windows of consecutive frames overlap, and one registration's error should not move it far.
+constexpr double kBiasGain = 0.1;
+// rad/s: a correction beyond this is a registration gone wrong, not a bias (MEMS gyros stay
+// within a few hundredths of a rad/s).
+constexpr double kMaxBiasStep = 0.05;
+
+}  // namespace
+
+GyroTrack::GyroTrack(const ImuConfig& config)
+    : R_lidar_imu_(config.T_lidar_imu().linear()), time_offset_(config.time_offset) {}
+
+void GyroTrack::add(const ImuSample& sample) {
+  const double t = sample.stamp - time_offset_;
+  if (!samples_.empty() && !(t > samples_.back().stamp))
+    throw Error("IMU sample at stamp " + std::to_string(sample.stamp) + " s is not after the one before");
+  samples_.push_back({t, R_lidar_imu_ * sample.gyro, R_lidar_imu_ * sample.accel});
+}
+
+bool GyroTrack::covers(double t0, double t1) const {
+  return samples_.size() >= 2 && samples_.front().stamp <= t0 && samples_.back().stamp >= t1;
+}
+
+size_t GyroTrack::index_before(double t) const {
+  const auto after = std::upper_bound(samples_.begin(), samples_.end(), t, [](double x, const ImuSample& s) { return x < s.stamp; });
+  return static_cast<size_t>(std::max<std::ptrdiff_t>(after - samples_.begin() - 1, 0));
+}
+
+Eigen::Vector3d GyroTrack::rate(size_t k, double t) const {
+  if (k + 1 >= samples_.size()) return samples_.back().gyro - bias_;
+  const ImuSample &a = samples_[k], &b = samples_[k + 1];
+  const double f = std::clamp((t - a.stamp) / (b.stamp - a.stamp), 0.0, 1.0);
+  return a.gyro + f * (b.gyro - a.gyro) - bias_;
+}
+
+std::vector<Eigen::Matrix3d> GyroTrack::rotations(double t0, double step, size_t n) const {
+  if (samples_.size() < 2) throw Error("GyroTrack: no IMU samples");
+  std::vector<Eigen::Matrix3d> out;
+  out.reserve(n);
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  double t = t0;
+  size_t k = index_before(t0);
+  for (size_t i = 0; i < n; ++i) {
+    const double target = t0 + step * static_cast<double>(i);
+    // Piecewise between the samples: the mean rate of each piece's ends (second order).
+    while (t < target) {
+      const double next = k + 1 < samples_.size() ? std::min(target, samples_[k + 1].stamp) : target;
+      if (next > t) R *= so3_exp(0.5 * (rate(k, t) + rate(k, next)) * (next - t));
+      t = next;
+      if (k + 1 < samples_.size() && t >= samples_[k + 1].stamp) ++k;
+    }
+    out.push_back(R);
+  }
+  return out;
+}
+
+void GyroTrack::observe(double t0, const Eigen::Matrix3d& R_world_0, double t1, const Eigen::Matrix3d& R_world_1) {
+  if (!covers(t0, t1) || !(t1 > t0)) return;
+  ImuPreintegration pre(ImuBias{bias_, Eigen::Vector3d::Zero()});
+  pre.integrate(samples_, t0, t1);
+  // delta_R(bias + d) = delta_R exp(dR_dbg d) to first order; d makes it the registered rotation.
+  const Eigen::Vector3d r = so3_log(pre.delta_R().transpose() * R_world_0.transpose() * R_world_1);
+  const Eigen::Vector3d d = pre.dR_dbg().inverse() * r;
+  if (d.allFinite() && d.norm() < kMaxBiasStep) bias_ += kBiasGain * d;
+}
+
+void GyroTrack::forget_before(double t) {
+  const size_t k = index_before(t);
+  if (k > 1024) samples_.erase(samples_.begin(), samples_.begin() + static_cast<std::ptrdiff_t>(k));
+}
+
+}  // namespace gcmap

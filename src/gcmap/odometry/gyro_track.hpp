@@ -1,0 +1,46 @@
+#pragma once
+// The IMU's rotation rates, moved onto the LiDAR's clock and into its frame, for deskewing sweeps
+// and predicting their rotation: within a sweep the gyro sees how the turn rate changes, which
+// poses registered at 10 Hz cannot. Its bias comes from the rotations the registration measured over
+// the last seconds (a low-pass estimate), so a gyro is usable from the first seconds of a drive.
+#include <Eigen/Core>
+#include <vector>
+
+#include "gcmap/core/imu_sample.hpp"
+#include "gcmap/graph/imu_preintegration.hpp"
+
+namespace gcmap {
+
+class GyroTrack {
+ public:
+  explicit GyroTrack(const ImuConfig& config);
+
+  // A sample on the IMU's clock and in its frame; stamps increasing. Throws Error otherwise.
+  void add(const ImuSample& sample);
+  size_t size() const { return samples_.size(); }
+  // Whether the samples span [t0, t1] (LiDAR clock).
+  bool covers(double t0, double t1) const;
+  // R_t0_t for t = t0 + k step, k = 0 .. n-1: the LiDAR frame's rotation since t0, bias removed.
+  // Beyond the samples the rate is held.
+  std::vector<Eigen::Matrix3d> rotations(double t0, double step, size_t n) const;
+  Eigen::Matrix3d rotation(double t0, double t1) const { return rotations(t0, t1 - t0, 2).back(); }
+
+  // The registration put the LiDAR at rotations R_world_0 at t0 and R_world_1 at t1: the gyro's
+  // rotation between them, off by its bias, moves the bias estimate a step towards agreement.
+  void observe(double t0, const Eigen::Matrix3d& R_world_0, double t1, const Eigen::Matrix3d& R_world_1);
+  const Eigen::Vector3d& bias() const { return bias_; }  // rad/s, LiDAR frame
+  // Samples older than t are no longer needed.
+  void forget_before(double t);
+
+ private:
+  // The bias-free rate at time t in [samples_[k].stamp, samples_[k+1].stamp] (held beyond).
+  Eigen::Vector3d rate(size_t k, double t) const;
+  size_t index_before(double t) const;
+
+  Eigen::Matrix3d R_lidar_imu_;
+  double time_offset_;
+  std::vector<ImuSample> samples_;  // LiDAR clock and frame, raw rates
+  Eigen::Vector3d bias_ = Eigen::Vector3d::Zero();
+};
+
+}  // namespace gcmap

@@ -1,0 +1,85 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "gcmap/core/error.hpp"
+#include "gcmap/core/se3.hpp"
+#include "gcmap/odometry/gyro_track.hpp"
+#include "test_util.hpp"
+
+namespace gcmap::test {
+namespace {
+
+// A LiDAR turning with a rate that changes within a tenth of a second, and its IMU: rotated and
+// offset on the LiDAR, its clock 20 ms ahead, its gyro off by a constant bias.
+struct Rig {
+  ImuConfig config;
+  Eigen::Vector3d bias_imu{0.002, -0.003, 0.0015};  // rad/s
+  Rig() {
+    config.x = 0.05, config.roll_deg = 3.0, config.pitch_deg = -90.0, config.yaw_deg = 30.0;
+    config.time_offset = 0.02;
+  }
+  // The LiDAR's rate in its own frame at LiDAR time t, and its rotation R_world_lidar(t).
+  static Eigen::Vector3d rate(double t) { return {0.3 * std::sin(3.0 * t), 0.1, 2.0 * std::sin(20.0 * t)}; }
+  // R_world_lidar at t = k step, k = 0 .. n, by fine integration of rate().
+  static std::vector<Eigen::Matrix3d> rotations(double step, int n) {
+    std::vector<Eigen::Matrix3d> out{Eigen::Matrix3d::Identity()};
+    constexpr int kSub = 2000;
+    for (int k = 0; k < n; ++k) {
+      Eigen::Matrix3d R = out.back();
+      for (int i = 0; i < kSub; ++i) R *= so3_exp(rate(step * (k + (i + 0.5) / kSub)) * (step / kSub));
+      out.push_back(R);
+    }
+    return out;
+  }
+  GyroTrack track(double until) const {
+    GyroTrack g(config);
+    const Eigen::Matrix3d R_imu_lidar = config.T_lidar_imu().linear().transpose();
+    for (double t = 0.0; t <= until; t += 1.0 / 400.0)
+      g.add({t + config.time_offset, R_imu_lidar * rate(t) + bias_imu, Eigen::Vector3d(0, 0, 9.8)});
+    return g;
+  }
+};
+
+TEST(GyroTrack, IntegratesTheLidarsRotationOnItsClockAndInItsFrame) {
+  Rig rig;
+  rig.bias_imu.setZero();
+  const GyroTrack g = rig.track(1.0);
+  EXPECT_TRUE(g.covers(0.1, 0.9));
+  EXPECT_FALSE(g.covers(-0.05, 0.5));  // the first sample is at LiDAR time 0
+  // Exact up to the integration of 400 Hz samples; a frame or clock mix-up would be off by 0.01-0.1 rad.
+  const std::vector<Eigen::Matrix3d> R_world = Rig::rotations(0.05, 9);
+  const Eigen::Matrix3d truth = R_world[7].transpose() * R_world[9];
+  const Eigen::Matrix3d R = g.rotation(0.35, 0.45);
+  EXPECT_LT(so3_log(truth.transpose() * R).norm(), 1e-4);
+  // Table entries agree with single rotations.
+  const std::vector<Eigen::Matrix3d> table = g.rotations(0.35, 0.001, 101);
+  EXPECT_LT(so3_log(table.back().transpose() * R).norm(), 1e-6);
+  EXPECT_LT(so3_log(table[37].transpose() * g.rotation(0.35, 0.387)).norm(), 1e-6);
+}
+
+TEST(GyroTrack, LearnsItsBiasFromRegisteredRotations) {
+  const Rig rig;
+  GyroTrack g = rig.track(20.0);
+  const Eigen::Vector3d bias_lidar = rig.config.T_lidar_imu().linear() * rig.bias_imu;
+  // Registered rotations with a little noise, every 0.1 s over a second.
+  std::vector<Eigen::Matrix3d> R = Rig::rotations(0.1, 200);
+  for (int k = 0; k <= 200; ++k) R[k] *= so3_exp(Eigen::Vector3d(1e-5 * std::sin(k), 0, 1e-5 * std::cos(3 * k)));
+  for (int k = 10; k <= 200; ++k) g.observe(0.1 * (k - 10), R[k - 10], 0.1 * k, R[k]);
+  EXPECT_LT((g.bias() - bias_lidar).norm(), 1e-4) << g.bias().transpose() << " vs " << bias_lidar.transpose();
+  std::printf("bias err %.3e of %.3e\n", (g.bias() - bias_lidar).norm(), bias_lidar.norm());
+  // An observation no bias explains (a failed registration) leaves it alone.
+  const Eigen::Vector3d before = g.bias();
+  g.observe(19.0, R[190], 20.0, R[200] * so3_exp(Eigen::Vector3d(0.5, 0, 0)));
+  EXPECT_EQ(g.bias(), before);
+}
+
+TEST(GyroTrack, RefusesSamplesOutOfOrder) {
+  GyroTrack g(ImuConfig{});
+  g.add({1.0, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()});
+  EXPECT_THROW(g.add({1.0, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()}), Error);
+  EXPECT_THROW(g.rotations(0.0, 0.001, 3), Error);  // a single sample spans nothing
+}
+
+}  // namespace
+}  // namespace gcmap::test
