@@ -14,6 +14,8 @@ namespace gcmap::python {
 
 namespace {
 
+using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
 py::object from_json(const Json& json) { return py::module_::import("json").attr("loads")(json.dump()); }
 
 class Pipeline {
@@ -44,6 +46,27 @@ class Pipeline {
       return p.add_scan(std::move(cloud), stamp, odom);
     });
     return py::make_tuple(pose_array(frame.T_world_frame), to_string(frame.status));
+  }
+
+  // One sample (a float stamp, gyro and accel of shape (3,)) or many ((n,), (n,3), (n,3)).
+  void add_imu(const DoubleArray& stamps, const DoubleArray& gyro,
+               const DoubleArray& accel) {
+    const bool one = stamps.ndim() == 0;
+    const py::ssize_t n = one ? 1 : stamps.shape(0);
+    const auto check = [&](const DoubleArray& a, const char* what) {
+      const bool ok = one ? a.ndim() == 1 && a.shape(0) == 3 : a.ndim() == 2 && a.shape(0) == n && a.shape(1) == 3;
+      if (!ok) throw Error(std::string(what) + ": expected shape " + (one ? "(3,)" : "(n, 3) with n the number of stamps"));
+    };
+    if (!one && stamps.ndim() != 1) throw Error("stamps: expected a float or an (n,) array");
+    check(gyro, "gyro"), check(accel, "accel");
+    std::vector<ImuSample> samples(static_cast<size_t>(n));
+    const double *t = stamps.data(), *g = gyro.data(), *a = accel.data();
+    for (py::ssize_t i = 0; i < n; ++i)
+      samples[i] = {t[i], Eigen::Vector3d(g[3 * i], g[3 * i + 1], g[3 * i + 2]), Eigen::Vector3d(a[3 * i], a[3 * i + 1], a[3 * i + 2])};
+    locked([&](MappingPipeline& p) {
+      if (p.finished()) throw StateError("add_imu: the pipeline is finished (finish() was called)");
+      for (const ImuSample& s : samples) p.add_imu(s);
+    });
   }
 
   void finish(std::optional<int> max_iterations) {
@@ -115,6 +138,11 @@ stamp, for motion compensation. T_odom: optional 4x4 odometry pose used instead 
 pose: the current 4x4 estimate of this frame (later frames and finish() still move it).
 status: "keyframe", "skipped" (overlaps the last keyframe) or "unusable" (empty or too few points:
 placed by the motion model). RuntimeError after finish().)")
+      .def("add_imu", &P::add_imu, py::arg("stamp"), py::arg("gyro"), py::arg("accel"),
+           R"(IMU samples, before the scans they span: stamp a float and gyro, accel (3,), or stamps (n,)
+and gyro, accel (n, 3). Gyro in rad/s, acceleration in m/s^2, both in the IMU frame (config.imu places it
+on the LiDAR), stamps on the IMU's clock (config.imu.time_offset), increasing. The gyro deskews the sweeps
+they span; ignored when config.imu.use is off. ValueError for a bad shape or a stamp not increasing.)")
       .def("finish", &P::finish, py::arg("max_iterations") = py::none(),
            "Closes the open submap and runs the final global optimization (at most max_iterations; 0 skips it).")
       .def_property_readonly("finished", [](P& p) { return p.locked([](MP& mp) { return mp.finished(); }); })

@@ -100,3 +100,30 @@ def test_same_trajectory_as_the_cli(tmp_path, drive, mapped):
                    check=True, capture_output=True)
     cli_poses = gcmap.read_trajectory(str(tmp_path / "out" / "trajectory.kitti"))
     np.testing.assert_allclose(cli_poses, mapped[0].trajectory, atol=1e-6)
+
+
+def test_imu_from_python_equals_the_cli(tmp_path):
+    """A simulated drive with an IMU fed through add_imu maps as `gcmap map` maps its folder."""
+    cli = os.environ.get("GCMAP_CLI")
+    if not cli or not os.path.exists(cli):
+        pytest.skip("GCMAP_CLI (the gcmap binary) not given")
+    seq, frames = tmp_path / "seq", 12
+    subprocess.run([cli, "simulate", "-o", str(seq), "--scenario", "city", "--sensor", "vlp16", "--frames", str(frames),
+                    "--realism", "motion_distortion", "--imu"], check=True, capture_output=True)
+    subprocess.run([cli, "map", str(seq), "-o", str(tmp_path / "out"), "--device", "cpu", "--quiet",
+                    "--no-elevation-estimate"], check=True, capture_output=True)
+    imu = np.loadtxt(seq / "imu.txt")
+    stamps = np.loadtxt(seq / "times.txt")
+    pipeline = gcmap.MappingPipeline(gcmap.MappingConfig(), device="cpu")
+    pipeline.add_imu(imu[0, 0], imu[0, 1:4], imu[0, 4:7])  # one sample, then the rest at once
+    pipeline.add_imu(imu[1:, 0], imu[1:, 1:4], imu[1:, 4:7])
+    for i in range(frames):
+        points = gcmap.read_points(str(seq / "velodyne" / f"{i:06d}.bin"))
+        times = np.fromfile(seq / "point_times" / f"{i:06d}.bin", dtype=np.float32)
+        pipeline.add_scan(points, float(stamps[i]), times=times)
+    pipeline.finish()
+    assert pipeline.stats["imu"]["gyro_deskewed_sweeps"] == frames - 2
+    cli_poses = gcmap.read_trajectory(str(tmp_path / "out" / "trajectory.kitti"))
+    np.testing.assert_allclose(cli_poses, pipeline.trajectory, atol=1e-6)
+    with pytest.raises(ValueError, match="gyro: expected shape"):
+        pipeline.add_imu(1.0, np.zeros(2), np.zeros(3))
