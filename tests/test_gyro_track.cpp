@@ -74,6 +74,27 @@ TEST(GyroTrack, LearnsItsBiasFromRegisteredRotations) {
   EXPECT_EQ(g.bias(), before);
 }
 
+TEST(GyroTrack, ItsClockCheckFindsAnOffsetLeftOutOfTheConfig) {
+  // The IMU runs 20 ms ahead; the config says 0, then the truth.
+  for (const double configured : {0.0, 0.02}) {
+    const Rig rig;  // its IMU stamps are 20 ms ahead
+    ImuConfig told = rig.config;
+    told.time_offset = configured;
+    GyroTrack g(told);
+    const Eigen::Matrix3d R_imu_lidar = rig.config.T_lidar_imu().linear().transpose();
+    for (double t = 0.0; t <= 12.0; t += 1.0 / 400.0)
+      g.add({t + rig.config.time_offset, R_imu_lidar * Rig::rate(t), Eigen::Vector3d(0, 0, 9.8)});
+    const std::vector<Eigen::Matrix3d> R = Rig::rotations(0.1, 110);
+    for (int k = 2; k <= 110; ++k) g.compare_rate(0.1 * (k - 1), 0.1 * k, so3_log(R[k - 1].transpose() * R[k]) / 0.1);
+    const auto c = g.clock_check();
+    ASSERT_TRUE(c.has_value());
+    EXPECT_GE(c->windows, 108u);  // windows whose shifts the samples cover
+    EXPECT_NEAR(c->best_shift, 0.02 - configured, 1.5e-3) << configured;
+    if (configured == 0.0) EXPECT_GT(c->rms_at_zero, 5.0 * c->rms_at_best);
+  }
+  EXPECT_FALSE(GyroTrack(ImuConfig{}).clock_check().has_value());
+}
+
 TEST(GyroTrack, RefusesSamplesOutOfOrder) {
   GyroTrack g(ImuConfig{});
   g.add({1.0, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()});

@@ -165,10 +165,23 @@ std::string gnss_line(const GnssStats& s, int epsg) {
   return buf;
 }
 
-std::string imu_line(const PipelineStats& s) {
+// What the clock check says: agreement, or the offset to set.
+std::string clock_verdict(const GyroTrack::ClockCheck& c, double configured) {
+  // Enough turning to tell, a shift beyond the check's resolution, and clearly better rates there.
+  const bool off = c.windows >= 20 && std::abs(c.best_shift) >= 0.005 && c.rms_at_zero > 1.2 * c.rms_at_best;
+  if (!off) return fmt::format("its clock agrees with the LiDAR's at imu.time_offset {:.3f} s", configured);
+  return fmt::format(
+      "WARNING: its rates agree with the registration's best {:.0f} ms {} (rms {:.4f} against {:.4f} rad/s): set imu.time_offset "
+      "to {:.3f} s and map again",
+      std::abs(c.best_shift) * 1e3, c.best_shift > 0 ? "later" : "earlier", c.rms_at_best, c.rms_at_zero, configured + c.best_shift);
+}
+
+std::string imu_line(const PipelineStats& s, double configured_offset) {
   const Eigen::Vector3d b = s.gyro_bias * 180.0 / M_PI;
-  return fmt::format("IMU: {} samples; the gyro deskewed {} of {} sweeps; gyro bias estimate ({:.4f}, {:.4f}, {:.4f}) deg/s",
-                     s.imu_samples, s.gyro_deskewed, s.frames, b.x(), b.y(), b.z());
+  std::string line = fmt::format("IMU: {} samples; the gyro deskewed {} of {} sweeps; gyro bias estimate ({:.4f}, {:.4f}, {:.4f}) deg/s",
+                                 s.imu_samples, s.gyro_deskewed, s.frames, b.x(), b.y(), b.z());
+  if (s.imu_clock) line += "; " + clock_verdict(*s.imu_clock, configured_offset);
+  return line;
 }
 
 // The UTM zone of the first fix; 0 without GNSS.
@@ -409,7 +422,7 @@ MapRunResult run_mapping(const MapRunOptions& o) {
   r.signal = signal;
   r.elevation_calibration = pipeline.elevation_calibration() != nullptr;
   if (!input.assumptions.gnss_fixes.empty()) r.gnss = gnss_line(pipeline.mapper().gnss_stats(), gnss_epsg(input.assumptions));
-  if (!input.assumptions.imu_samples.empty()) r.imu = imu_line(pipeline.stats());
+  if (!input.assumptions.imu_samples.empty()) r.imu = imu_line(pipeline.stats(), o.config.imu.time_offset);
   if (!signal && 2 * unusable > frames)
     r.failure = o.input + ": " + std::to_string(unusable) + " of its " + std::to_string(frames) +
                 " scans could not be mapped (unreadable, empty or too few points: see the warnings above)";

@@ -191,6 +191,7 @@ PipelineStats MappingPipeline::stats() const {
   s.imu_samples = imu_samples_;
   s.gyro_deskewed = gyro_deskewed_;
   s.gyro_bias = odometry_.gyro_bias();
+  s.imu_clock = odometry_.imu_clock_check();
   s.preprocess = preprocess_ms_;
   s.odometry = odometry_ms_;
   s.mapper = mapper_.stats();

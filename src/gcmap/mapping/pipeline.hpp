@@ -48,6 +48,7 @@ struct PipelineStats {
   size_t imu_samples = 0;            // IMU samples given (add_imu)
   size_t gyro_deskewed = 0;          // sweeps deskewed with the gyro's rotation
   Eigen::Vector3d gyro_bias = Eigen::Vector3d::Zero();  // rad/s, LiDAR frame, the last estimate
+  std::optional<GyroTrack::ClockCheck> imu_clock;       // the gyro's rates against the registered ones
   TimingStats preprocess, odometry;  // preprocess overlaps the other stages in run()
   MapperStats mapper;
   double seconds = 0.0;  // from construction to finish()

@@ -1,6 +1,7 @@
 #include "gcmap/odometry/gyro_track.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <string>
 
 #include "gcmap/core/error.hpp"
@@ -74,6 +75,37 @@ void GyroTrack::observe(double t0, const Eigen::Matrix3d& R_world_0, double t1, 
   const Eigen::Vector3d r = so3_log(pre.delta_R().transpose() * R_world_0.transpose() * R_world_1);
   const Eigen::Vector3d d = pre.dR_dbg().inverse() * r;
   if (d.allFinite() && d.norm() < kMaxBiasStep) bias_ += kBiasGain * d;
+}
+
+void GyroTrack::compare_rate(double t0, double t1, const Eigen::Vector3d& registered) {
+  const double reach = kShiftSteps * kShiftStep;
+  if (!(t1 > t0) || !covers(t0 - reach, t1 + reach)) return;
+  for (int j = 0; j <= 2 * kShiftSteps; ++j) {
+    const double shift = (j - kShiftSteps) * kShiftStep;
+    // The mean rate over the shifted window by the trapezoid rule on 1 ms steps.
+    const int steps = std::max(1, static_cast<int>(std::lround((t1 - t0) / kShiftStep)));
+    const double h = (t1 - t0) / steps;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    size_t k = index_before(t0 + shift);
+    for (int i = 0; i <= steps; ++i) {
+      const double t = t0 + shift + h * i;
+      while (k + 1 < samples_.size() && samples_[k + 1].stamp <= t) ++k;
+      sum += (i == 0 || i == steps ? 0.5 : 1.0) * rate(k, t);
+    }
+    shift_sse_[static_cast<size_t>(j)] += (sum / steps - registered).squaredNorm();
+  }
+  ++shift_windows_;
+}
+
+std::optional<GyroTrack::ClockCheck> GyroTrack::clock_check() const {
+  if (shift_windows_ == 0) return std::nullopt;
+  const auto best = std::min_element(shift_sse_.begin(), shift_sse_.end());
+  ClockCheck c;
+  c.best_shift = (static_cast<int>(best - shift_sse_.begin()) - kShiftSteps) * kShiftStep;
+  c.rms_at_best = std::sqrt(*best / shift_windows_);
+  c.rms_at_zero = std::sqrt(shift_sse_[kShiftSteps] / shift_windows_);
+  c.windows = shift_windows_;
+  return c;
 }
 
 void GyroTrack::forget_before(double t) {

@@ -4,6 +4,8 @@
 // poses registered at 10 Hz cannot. Its bias comes from the rotations the registration measured over
 // the last seconds (a low-pass estimate), so a gyro is usable from the first seconds of a drive.
 #include <Eigen/Core>
+#include <array>
+#include <optional>
 #include <vector>
 
 #include "gcmap/core/imu_sample.hpp"
@@ -29,6 +31,18 @@ class GyroTrack {
   // rotation between them, off by its bias, moves the bias estimate a step towards agreement.
   void observe(double t0, const Eigen::Matrix3d& R_world_0, double t1, const Eigen::Matrix3d& R_world_1);
   const Eigen::Vector3d& bias() const { return bias_; }  // rad/s, LiDAR frame
+
+  // The clock check: `registered` (rad/s, LiDAR frame) is the registered mean rate over [t0, t1];
+  // it is compared with the gyro's mean rate over that window shifted by each candidate offset
+  // (up to 0.1 s either way, 1 ms apart).
+  void compare_rate(double t0, double t1, const Eigen::Vector3d& registered);
+  struct ClockCheck {
+    double best_shift = 0.0;  // s to add to imu.time_offset for the best agreement
+    double rms_at_zero = 0.0, rms_at_best = 0.0;  // rad/s
+    size_t windows = 0;
+  };
+  // Empty before any window was compared.
+  std::optional<ClockCheck> clock_check() const;
   // Samples older than t are no longer needed.
   void forget_before(double t);
 
@@ -36,6 +50,12 @@ class GyroTrack {
   // The bias-free rate at time t in [samples_[k].stamp, samples_[k+1].stamp] (held beyond).
   Eigen::Vector3d rate(size_t k, double t) const;
   size_t index_before(double t) const;
+
+  // Candidate shifts of the IMU's clock, kShiftStep apart, +-kShiftSteps of them.
+  static constexpr int kShiftSteps = 100;
+  static constexpr double kShiftStep = 1e-3;
+  std::array<double, 2 * kShiftSteps + 1> shift_sse_{};
+  size_t shift_windows_ = 0;
 
   Eigen::Matrix3d R_lidar_imu_;
   double time_offset_;

@@ -111,6 +111,11 @@ Eigen::Vector3d SweepOdometry::gyro_correction(const Eigen::Isometry3d& T_world_
 void SweepOdometry::observe_gyro(const SweepReference& reference) {
   // Over about a second the registration's error is small against the bias's integral.
   constexpr double kWindow = 1.0;
+  if (!gyro_references_.empty()) {
+    const SweepReference& last = gyro_references_.back();
+    const double span = reference.stamp - last.stamp;
+    if (span > 0.025) gyro_.compare_rate(last.stamp, reference.stamp, so3_log(last.pose.linear().transpose() * reference.pose.linear()) / span);
+  }
   gyro_references_.push_back(reference);
   while (gyro_references_.size() > 2 && gyro_references_[1].stamp <= reference.stamp - kWindow) gyro_references_.pop_front();
   const SweepReference& from = gyro_references_.front();

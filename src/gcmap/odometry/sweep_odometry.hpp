@@ -45,6 +45,7 @@ class SweepOdometry {
   // imu.use. Sweeps the samples span are deskewed with the gyro's rotation.
   void add_imu(const ImuSample& sample);
   const Eigen::Vector3d& gyro_bias() const { return gyro_.bias(); }  // rad/s, LiDAR frame
+  std::optional<GyroTrack::ClockCheck> imu_clock_check() const { return gyro_.clock_check(); }
 
   // The pose of a prepared scan (null: unusable, placed by the prediction) at `stamp`, stamps
   // non-decreasing. A scan with per-point times is deskewed in place into the sensor frame at the
