@@ -60,17 +60,17 @@ TEST(GyroTrack, IntegratesTheLidarsRotationOnItsClockAndInItsFrame) {
 
 TEST(GyroTrack, LearnsItsBiasFromRegisteredRotations) {
   const Rig rig;
-  GyroTrack g = rig.track(20.0);
+  GyroTrack g = rig.track(40.0);
   const Eigen::Vector3d bias_lidar = rig.config.T_lidar_imu().linear() * rig.bias_imu;
-  // Registered rotations with a little noise, every 0.1 s over a second.
-  std::vector<Eigen::Matrix3d> R = Rig::rotations(0.1, 200);
-  for (int k = 0; k <= 200; ++k) R[k] *= so3_exp(Eigen::Vector3d(1e-5 * std::sin(k), 0, 1e-5 * std::cos(3 * k)));
-  for (int k = 10; k <= 200; ++k) g.observe(0.1 * (k - 10), R[k - 10], 0.1 * k, R[k]);
+  // Registered rotations with a little noise, every 0.1 s over 40 s.
+  std::vector<Eigen::Matrix3d> R = Rig::rotations(0.1, 400);
+  for (int k = 0; k <= 400; ++k) R[k] *= so3_exp(Eigen::Vector3d(1e-5 * std::sin(k), 0, 1e-5 * std::cos(3 * k)));
+  for (int k = 10; k <= 400; ++k) g.observe(0.1 * (k - 10), R[k - 10], 0.1 * k, R[k]);
   EXPECT_LT((g.bias() - bias_lidar).norm(), 1e-4) << g.bias().transpose() << " vs " << bias_lidar.transpose();
   std::printf("bias err %.3e of %.3e\n", (g.bias() - bias_lidar).norm(), bias_lidar.norm());
   // An observation no bias explains (a failed registration) leaves it alone.
   const Eigen::Vector3d before = g.bias();
-  g.observe(19.0, R[190], 20.0, R[200] * so3_exp(Eigen::Vector3d(0.5, 0, 0)));
+  g.observe(39.0, R[390], 40.0, R[400] * so3_exp(Eigen::Vector3d(0.5, 0, 0)));
   EXPECT_EQ(g.bias(), before);
 }
 

@@ -12,8 +12,9 @@ namespace gcmap {
 namespace {
 
 // Each registered rotation moves the bias this fraction of the way to agreeing with it: the
-// windows of consecutive frames overlap, and one registration's error should not move it far.
-constexpr double kBiasGain = 0.1;
+// windows of consecutive frames overlap, and a second of white gyro noise alone is worth about
+// its density in rad/s, as much as a MEMS bias; the bias itself wanders over minutes.
+constexpr double kBiasGain = 0.02;
 // rad/s: a correction beyond this is a registration gone wrong, not a bias (MEMS gyros stay
 // within a few hundredths of a rad/s).
 constexpr double kMaxBiasStep = 0.05;
