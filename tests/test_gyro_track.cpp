@@ -95,6 +95,24 @@ TEST(GyroTrack, ItsClockCheckFindsAnOffsetLeftOutOfTheConfig) {
   EXPECT_FALSE(GyroTrack(ImuConfig{}).clock_check().has_value());
 }
 
+TEST(GyroTrack, DisagreesWhenTheConfigMisplacesTheImu) {
+  // The rig's IMU sits pitched by -90 deg; a config that forgets that mixes its axes up.
+  const Rig rig;
+  const std::vector<Eigen::Matrix3d> R = Rig::rotations(0.1, 40);
+  for (const bool right : {true, false}) {
+    ImuConfig told = rig.config;
+    if (!right) told.pitch_deg = 0.0;
+    GyroTrack g(told);
+    const Eigen::Matrix3d R_imu_lidar = rig.config.T_lidar_imu().linear().transpose();
+    for (double t = 0.0; t <= 4.0; t += 1.0 / 400.0)
+      g.add({t + rig.config.time_offset, R_imu_lidar * Rig::rate(t), Eigen::Vector3d(0, 0, 9.8)});
+    for (int k = 2; k <= 14; ++k) g.compare_rate(0.1 * (k - 1), 0.1 * k, so3_log(R[k - 1].transpose() * R[k]) / 0.1);
+    EXPECT_FALSE(g.disagrees());  // too few windows to tell yet
+    for (int k = 15; k <= 40; ++k) g.compare_rate(0.1 * (k - 1), 0.1 * k, so3_log(R[k - 1].transpose() * R[k]) / 0.1);
+    EXPECT_EQ(g.disagrees(), !right);
+  }
+}
+
 TEST(GyroTrack, RefusesSamplesOutOfOrder) {
   GyroTrack g(ImuConfig{});
   g.add({1.0, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()});

@@ -180,6 +180,11 @@ std::string imu_line(const PipelineStats& s, double configured_offset) {
   const Eigen::Vector3d b = s.gyro_bias * 180.0 / M_PI;
   std::string line = fmt::format("IMU: {} samples; the gyro deskewed {} of {} sweeps; gyro bias estimate ({:.4f}, {:.4f}, {:.4f}) deg/s",
                                  s.imu_samples, s.gyro_deskewed, s.frames, b.x(), b.y(), b.z());
+  if (s.gyro_rejected_at)
+    return line + fmt::format(
+                      "; WARNING: from frame {} on it was not used, its rates not following the LiDAR's rotation (rms {:.3f} "
+                      "against rates of {:.3f} rad/s): check imu.roll_deg, pitch_deg and yaw_deg",
+                      *s.gyro_rejected_at, s.imu_clock->rms_at_best, s.imu_clock->rms_rate);
   if (s.imu_clock) line += "; " + clock_verdict(*s.imu_clock, configured_offset);
   return line;
 }

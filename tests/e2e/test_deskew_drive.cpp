@@ -46,11 +46,12 @@ std::vector<PointCloud> simulate(bool distorted, Poses& gt) {
 
 // The corner drive's IMU (default noise unless noise_free), on the clock of the scans given to
 // track_drive (frame kFirst at 0).
-std::vector<ImuSample> simulate_imu(bool noise_free) {
+std::vector<ImuSample> simulate_imu(bool noise_free, const Eigen::Matrix3d& R_lidar_imu = Eigen::Matrix3d::Identity()) {
   const sim::SimulationConfig sc = corner_drive(true);
   const sim::Simulator simulator(sc);
   sim::ImuSimConfig ic;
   ic.noise = !noise_free;
+  ic.T_lidar_imu.linear() = R_lidar_imu;
   std::vector<ImuSample> out;
   for (ImuSample s : sim::simulate_imu(sim::imu_trajectory(simulator, ic.T_lidar_imu), ic, sc.seed).samples) {
     s.stamp -= 0.1 * kFirst;
@@ -60,7 +61,7 @@ std::vector<ImuSample> simulate_imu(bool noise_free) {
 }
 
 DriveErrors track_drive(std::vector<PointCloud> scans, const Poses& gt, bool deskew, bool redeskew = true,
-                        const std::vector<ImuSample>& imu = {}) {
+                        const std::vector<ImuSample>& imu = {}, PipelineStats* stats = nullptr) {
   MappingConfig config;
   config.loop.enabled = false;
   config.preprocess.deskew = deskew;
@@ -72,6 +73,7 @@ DriveErrors track_drive(std::vector<PointCloud> scans, const Poses& gt, bool des
   for (const ImuSample& s : imu) pipeline.add_imu(s);
   for (size_t k = 0; k < scans.size(); ++k) pipeline.add_scan(std::move(scans[k]), 0.1 * static_cast<double>(k));
   pipeline.finish();
+  if (stats) *stats = pipeline.stats();
   // From the 5th frame on: the first sweep is smeared (no motion known yet to deskew it with), and
   // the prediction for the second one is no motion.
   const size_t settled = 4;
@@ -118,6 +120,21 @@ TEST(DeskewDrive, AGyroFollowsTheTurnRateWithinASweep) {
   EXPECT_LT(exact.trajectory.translation_rmse, 0.5 * lidar.trajectory.translation_rmse);
   EXPECT_LT(exact.trajectory.rotation_rmse_deg, 0.5 * lidar.trajectory.rotation_rmse_deg);
   EXPECT_LT(noisy.trajectory.translation_rmse, 0.5 * lidar.trajectory.translation_rmse);
+}
+
+TEST(DeskewDrive, AnImuTheConfigMisplacesIsNoLongerUsed) {
+  // The IMU sits rolled by 90 deg; the config says it is aligned with the LiDAR.
+  Poses gt;
+  const std::vector<PointCloud> scans = simulate(true, gt);
+  PipelineStats stats;
+  const DriveErrors lidar = track_drive(scans, gt, true),
+                    misplaced = track_drive(scans, gt, true, true, simulate_imu(true, so3_exp(Eigen::Vector3d(M_PI / 2, 0, 0))), &stats);
+  std::printf("trajectory RPE m / deg: LiDAR only %.4f / %.4f, IMU misplaced %.4f / %.4f, gyro rejected at frame %d\n",
+              lidar.trajectory.translation_rmse, lidar.trajectory.rotation_rmse_deg, misplaced.trajectory.translation_rmse,
+              misplaced.trajectory.rotation_rmse_deg, stats.gyro_rejected_at.value_or(-1));
+  ASSERT_TRUE(stats.gyro_rejected_at.has_value());
+  EXPECT_LT(*stats.gyro_rejected_at, 20);
+  EXPECT_LT(stats.gyro_deskewed, 20u);
 }
 
 // The first 110 sweeps of `highway` (every realism key, 26-28 m/s on a straight road between guard

@@ -142,6 +142,12 @@ MappingPipeline::Tracked MappingPipeline::track_frame(PreparedScan scan, std::op
   f.registration = e.quality;
   f.deskew_shift = e.deskew_shift;
   gyro_deskewed_ += e.gyro ? 1 : 0;
+  if (!gyro_warned_ && odometry_.gyro_rejected_at()) {
+    spdlog::warn("scan {}: the gyro's rates do not follow the LiDAR's registered rotation: the IMU is no longer used "
+                 "(check imu.roll_deg, pitch_deg and yaw_deg)",
+                 f.index);
+    gyro_warned_ = true;
+  }
   frame_figures_.push_back({e.quality, e.deskew_shift, scan.cloud != nullptr});
   if (e.revised) odometry_poses_[e.revised->frame] = e.revised->T_world_frame;
   if (f.odometry_failed) {
@@ -192,6 +198,7 @@ PipelineStats MappingPipeline::stats() const {
   s.gyro_deskewed = gyro_deskewed_;
   s.gyro_bias = odometry_.gyro_bias();
   s.imu_clock = odometry_.imu_clock_check();
+  s.gyro_rejected_at = odometry_.gyro_rejected_at();
   s.preprocess = preprocess_ms_;
   s.odometry = odometry_ms_;
   s.mapper = mapper_.stats();

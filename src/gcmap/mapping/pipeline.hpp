@@ -49,6 +49,7 @@ struct PipelineStats {
   size_t gyro_deskewed = 0;          // sweeps deskewed with the gyro's rotation
   Eigen::Vector3d gyro_bias = Eigen::Vector3d::Zero();  // rad/s, LiDAR frame, the last estimate
   std::optional<GyroTrack::ClockCheck> imu_clock;       // the gyro's rates against the registered ones
+  std::optional<int> gyro_rejected_at;                  // see SweepOdometry::gyro_rejected_at
   TimingStats preprocess, odometry;  // preprocess overlaps the other stages in run()
   MapperStats mapper;
   double seconds = 0.0;  // from construction to finish()
@@ -160,6 +161,7 @@ class MappingPipeline {
   std::vector<Eigen::Isometry3d> odometry_poses_;
   size_t unusable_scans_ = 0, odometry_failures_ = 0, gyro_deskewed_ = 0;  // track_frame's
   size_t imu_samples_ = 0;
+  bool gyro_warned_ = false;
   size_t unusable_frames_ = 0;                         // map_frame's
   TimingStats preprocess_ms_, odometry_ms_;
   Stopwatch clock_;

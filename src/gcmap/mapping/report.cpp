@@ -80,11 +80,13 @@ Json stats_json(const MappingPipeline& pipeline) {
     imu["samples"] = ps.imu_samples;
     imu["gyro_deskewed_sweeps"] = ps.gyro_deskewed;
     imu["gyro_bias_rad_s"] = bias;  // LiDAR frame, the estimate at the end
+    if (ps.gyro_rejected_at) imu["gyro_rejected_at_frame"] = *ps.gyro_rejected_at;
     if (ps.imu_clock) {
       Json clock = Json::object();
       clock["best_shift_s"] = ps.imu_clock->best_shift;  // to add to imu.time_offset
       clock["rate_rms_at_configured_offset_rad_s"] = ps.imu_clock->rms_at_zero;
       clock["rate_rms_at_best_shift_rad_s"] = ps.imu_clock->rms_at_best;
+      clock["registered_rate_rms_rad_s"] = ps.imu_clock->rms_rate;
       clock["windows"] = ps.imu_clock->windows;
       imu["clock_check"] = clock;
     }

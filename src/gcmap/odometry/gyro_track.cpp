@@ -95,6 +95,7 @@ void GyroTrack::compare_rate(double t0, double t1, const Eigen::Vector3d& regist
     }
     shift_sse_[static_cast<size_t>(j)] += (sum / steps - registered).squaredNorm();
   }
+  rate_sse_ += registered.squaredNorm();
   ++shift_windows_;
 }
 
@@ -105,8 +106,14 @@ std::optional<GyroTrack::ClockCheck> GyroTrack::clock_check() const {
   c.best_shift = (static_cast<int>(best - shift_sse_.begin()) - kShiftSteps) * kShiftStep;
   c.rms_at_best = std::sqrt(*best / shift_windows_);
   c.rms_at_zero = std::sqrt(shift_sse_[kShiftSteps] / shift_windows_);
+  c.rms_rate = std::sqrt(rate_sse_ / shift_windows_);
   c.windows = shift_windows_;
   return c;
+}
+
+bool GyroTrack::disagrees() const {
+  const std::optional<ClockCheck> c = clock_check();
+  return c && c->windows >= 15 && c->rms_at_best > 0.02 && c->rms_at_best > 0.5 * c->rms_rate;
 }
 
 void GyroTrack::forget_before(double t) {

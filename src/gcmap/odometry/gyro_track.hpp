@@ -39,10 +39,15 @@ class GyroTrack {
   struct ClockCheck {
     double best_shift = 0.0;  // s to add to imu.time_offset for the best agreement
     double rms_at_zero = 0.0, rms_at_best = 0.0;  // rad/s
+    double rms_rate = 0.0;                        // rad/s: of the registered rates themselves
     size_t windows = 0;
   };
   // Empty before any window was compared.
   std::optional<ClockCheck> clock_check() const;
+  // The gyro does not follow the registered rotation at any shift (the rotation of T_lidar_imu
+  // wrong, another sensor's IMU): after 15 windows, its rates miss the registered ones by more
+  // than half their size and by more than 0.02 rad/s.
+  bool disagrees() const;
   // Samples older than t are no longer needed.
   void forget_before(double t);
 
@@ -55,6 +60,7 @@ class GyroTrack {
   static constexpr int kShiftSteps = 100;
   static constexpr double kShiftStep = 1e-3;
   std::array<double, 2 * kShiftSteps + 1> shift_sse_{};
+  double rate_sse_ = 0.0;
   size_t shift_windows_ = 0;
 
   Eigen::Matrix3d R_lidar_imu_;

@@ -44,6 +44,7 @@ void SweepOdometry::add_imu(const ImuSample& sample) {
 }
 
 std::shared_ptr<const SweepOdometry::GyroSweep> SweepOdometry::gyro_sweep(const PointCloud& cloud, double stamp) const {
+  if (gyro_rejected_at_) return nullptr;
   const auto [lo, hi] = std::minmax_element(cloud.times.begin(), cloud.times.end());
   const double first = std::min(0.0, static_cast<double>(*lo)), last = std::max(0.0, static_cast<double>(*hi));
   if (!last_ || !gyro_.covers(std::min(last_->second, stamp + first), stamp + last)) return nullptr;
@@ -115,6 +116,7 @@ void SweepOdometry::observe_gyro(const SweepReference& reference) {
     const SweepReference& last = gyro_references_.back();
     const double span = reference.stamp - last.stamp;
     if (span > 0.025) gyro_.compare_rate(last.stamp, reference.stamp, so3_log(last.pose.linear().transpose() * reference.pose.linear()) / span);
+    if (gyro_.disagrees()) gyro_rejected_at_ = frames_;
   }
   gyro_references_.push_back(reference);
   while (gyro_references_.size() > 2 && gyro_references_[1].stamp <= reference.stamp - kWindow) gyro_references_.pop_front();
@@ -149,7 +151,7 @@ SweepEstimate SweepOdometry::track(const std::shared_ptr<PointCloud>& cloud, dou
   } else {
     e = track_deskewed(cloud, stamp, dt);
   }
-  if (!e.deskewed || T_odom) previous_mean_.reset(), before_previous_.reset(), previous_.reset();
+  if (!e.deskewed || T_odom) previous_mean_.reset(), before_previous_.reset(), previous_.reset(), gyro_references_.clear();
   if (first_ && frames_ > first_->frame) first_.reset();  // only the next frame restarts
   e.lost = e.failed && !odometry_.has_model();
   last_.emplace(e.T_world_frame, stamp);

@@ -46,6 +46,9 @@ class SweepOdometry {
   void add_imu(const ImuSample& sample);
   const Eigen::Vector3d& gyro_bias() const { return gyro_.bias(); }  // rad/s, LiDAR frame
   std::optional<GyroTrack::ClockCheck> imu_clock_check() const { return gyro_.clock_check(); }
+  // The frame from which the gyro is no longer used, its rates not following the registered
+  // rotation (GyroTrack::disagrees); empty while it is.
+  std::optional<int> gyro_rejected_at() const { return gyro_rejected_at_; }
 
   // The pose of a prepared scan (null: unusable, placed by the prediction) at `stamp`, stamps
   // non-decreasing. A scan with per-point times is deskewed in place into the sensor frame at the
@@ -132,6 +135,7 @@ class SweepOdometry {
   double gyro_noise_;
   GyroTrack gyro_;
   std::deque<SweepReference> gyro_references_;  // the registered sweeps of the last second, in a row
+  std::optional<int> gyro_rejected_at_;
   int frames_ = 0;
   struct FirstSweep {
     PointCloud raw;
