@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <filesystem>
 
+#include "gcmap/io/bag_writer.hpp"
 #include "gcmap/io/imu_io.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "gcmap/sim/writer.hpp"
@@ -79,6 +80,33 @@ TEST_F(ImuInputs, NoImuMapsAsIfThereWereNone) {
   EXPECT_NE(stats.find("imu.use is off (--no-imu)"), std::string::npos);
   EXPECT_EQ(stats.find("\"gyro_deskewed_sweeps\""), std::string::npos);
   EXPECT_EQ(stats.find("\"imu_file\""), std::string::npos);
+}
+
+// The simulated MCAP with its /imu topic written a second time as /imu_raw, as a recording with a
+// driver's IMU topic and a filtered one holds.
+std::string with_second_imu_topic(const std::string& from, const std::string& to) {
+  auto in = open_bag(from);
+  auto out = open_bag_writer(to, BagFormat::mcap);
+  for (const auto& [name, as] : std::vector<std::pair<std::string, std::string>>{{"/points", "/points"}, {"/imu", "/imu"}, {"/imu", "/imu_raw"}}) {
+    const uint32_t topic = out->add_topic(as, in->topic(name).type);
+    auto cursor = in->read(name);
+    BagMessage m;
+    while (cursor->next(m)) out->write(topic, m.time_ns, m.data);
+  }
+  out->close();
+  return to;
+}
+
+TEST_F(ImuInputs, ABagWithTwoImuTopicsNeedsOneChosen) {
+  const std::string two = with_second_imu_topic(bag("mcap"), out("two_imu.mcap"));
+  const CliRun r = run_map(two, "two");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("two_imu.mcap: 2 sensor_msgs/Imu topics (/imu, /imu_raw): choose one with --imu-topic"), std::string::npos)
+      << r.err;
+  const CliRun chosen = run_map(two, "two-chosen", "--imu-topic /imu_raw");
+  ASSERT_EQ(chosen.code, 0) << chosen.err;
+  ASSERT_EQ(run_map(bag("mcap"), "one").code, 0);
+  EXPECT_EQ(slurp(out("two-chosen") + "/trajectory.tum"), slurp(out("one") + "/trajectory.tum"));
 }
 
 TEST_F(ImuInputs, BadImuInputIsAOneLineErrorNamingIt) {
