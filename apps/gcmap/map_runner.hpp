@@ -32,8 +32,8 @@ struct MapRunResult {
   std::string failure;  // why the run failed although it wrote its outputs (most scans unusable), else empty
   std::string gnss;     // a line on the GNSS fixes used and rejected; empty without GNSS
   std::string imu;      // a line on what the IMU did; empty without one
-  bool nothing_written = false;
-  bool elevation_calibration = false;  // elevation_calibration.txt written  // interrupted before mapping began (while estimating the beam elevations)
+  bool nothing_written = false;        // interrupted before mapping began (while estimating the beam elevations)
+  bool elevation_calibration = false;  // elevation_calibration.txt written
 };
 
 // A sequence folder or a ROS bag.

@@ -87,7 +87,8 @@ TEST_F(ImuInputs, NoImuMapsAsIfThereWereNone) {
 std::string with_second_imu_topic(const std::string& from, const std::string& to) {
   auto in = open_bag(from);
   auto out = open_bag_writer(to, BagFormat::mcap);
-  for (const auto& [name, as] : std::vector<std::pair<std::string, std::string>>{{"/points", "/points"}, {"/imu", "/imu"}, {"/imu", "/imu_raw"}}) {
+  for (const auto& [name, as] :
+       std::vector<std::pair<std::string, std::string>>{{"/points", "/points"}, {"/imu", "/imu"}, {"/imu", "/imu_raw"}}) {
     const uint32_t topic = out->add_topic(as, in->topic(name).type);
     auto cursor = in->read(name);
     BagMessage m;

@@ -21,8 +21,7 @@ constexpr double kMaxBiasStep = 0.05;
 
 }  // namespace
 
-GyroTrack::GyroTrack(const ImuConfig& config)
-    : R_lidar_imu_(config.T_lidar_imu().linear()), time_offset_(config.time_offset) {}
+GyroTrack::GyroTrack(const ImuConfig& config) : R_lidar_imu_(config.T_lidar_imu().linear()), time_offset_(config.time_offset) {}
 
 void GyroTrack::add(const ImuSample& sample) {
   const double t = sample.stamp - time_offset_;
@@ -36,7 +35,8 @@ bool GyroTrack::covers(double t0, double t1) const {
 }
 
 size_t GyroTrack::index_before(double t) const {
-  const auto after = std::upper_bound(samples_.begin(), samples_.end(), t, [](double x, const ImuSample& s) { return x < s.stamp; });
+  const auto after =
+      std::upper_bound(samples_.begin(), samples_.end(), t, [](double x, const ImuSample& s) { return x < s.stamp; });
   return static_cast<size_t>(std::max<std::ptrdiff_t>(after - samples_.begin() - 1, 0));
 }
 

@@ -37,7 +37,7 @@ class GyroTrack {
   // (up to 0.1 s either way, 1 ms apart).
   void compare_rate(double t0, double t1, const Eigen::Vector3d& registered);
   struct ClockCheck {
-    double best_shift = 0.0;  // s to add to imu.time_offset for the best agreement
+    double best_shift = 0.0;                      // s to add to imu.time_offset for the best agreement
     double rms_at_zero = 0.0, rms_at_best = 0.0;  // rad/s
     double rms_rate = 0.0;                        // rad/s: of the registered rates themselves
     size_t windows = 0;
