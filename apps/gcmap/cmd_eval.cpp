@@ -64,6 +64,7 @@ Json trajectory_report(const Poses& gt, const Poses& est, const KittiError& k) {
 void add_eval(CLI::App& app, Runner& run) {
   struct Options {
     std::string gt, est, format, calib;
+    bool vertical = false;
   };
   auto opt = std::make_shared<Options>();
   auto* cmd = app.add_subcommand("eval", "Compare a trajectory with ground truth: KITTI relative error, ATE, RPE (JSON)");
@@ -71,6 +72,9 @@ void add_eval(CLI::App& app, Runner& run) {
   cmd->add_option("--est", opt->est, "Estimated trajectory (KITTI or TUM)")->required();
   cmd->add_option("--format", opt->format, "Force both files to be read as kitti or tum (default: detected)");
   cmd->add_option("--calib", opt->calib, "KITTI calib.txt: convert Velodyne-frame estimates into camera 0 with Tr");
+  cmd->add_flag("--vertical", opt->vertical,
+                "Also how far each pose's vertical is from the truth's (deg): for a --gt whose z is up (a simulation's "
+                "poses_world.txt) and a run levelled by an IMU or GNSS");
   cmd->callback([opt, &run] {
     run = [opt] {
       const Trajectory gt = read_trajectory(opt->gt);
@@ -92,7 +96,16 @@ void add_eval(CLI::App& app, Runner& run) {
       if (!k.num_segments)
         std::cerr << opt->gt
                   << ": no segment of 100 m or more, the KITTI relative error is undefined (null); ATE and RPE apply\n";
-      std::cout << trajectory_report(gt.poses, est.poses, k).dump() << std::endl;
+      Json report = trajectory_report(gt.poses, est.poses, k);
+      if (opt->vertical) {
+        const VerticalError v = vertical_error(gt.poses, est.poses);
+        Json vj = Json::object();
+        vj["rmse"] = v.rmse_deg;
+        vj["mean"] = v.mean_deg;
+        vj["max"] = v.max_deg;
+        report["vertical_deg"] = vj;
+      }
+      std::cout << report.dump() << std::endl;
       return 0;
     };
   });

@@ -40,6 +40,7 @@ void add_inspect(CLI::App& app, Runner& run) {
                               .gnss_file = "",
                               .gnss_topic = "",
                               .use_imu = c.imu.use,
+                              .imu_levels_map = c.imu.level_map,
                               .imu_file = "",
                               .imu_topic = ""};
       io.sample_scans = opt->sample;

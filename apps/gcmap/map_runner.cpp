@@ -147,7 +147,7 @@ Json gnss_json(const GnssStats& s, const InputAssumptions& a, int epsg) {
   Json origin = Json::array();
   for (double v : {o.lat_deg, o.lon_deg, o.alt_m}) origin.push_back(v);
   j["enu_origin"] = origin;
-  j["map_frame"] = s.georeferenced ? "local ENU at enu_origin (x east, y north, z up)" : "first frame (not georeferenced)";
+  j["map_frame"] = s.georeferenced ? "local ENU at enu_origin (x east, y north, z up)" : "not georeferenced: see map_frame above";
   if (epsg) j["utm_epsg"] = epsg;
   return j;
 }
@@ -186,6 +186,13 @@ std::string imu_line(const PipelineStats& s, double configured_offset) {
                       "against rates of {:.3f} rad/s): check imu.roll_deg, pitch_deg and yaw_deg",
                       *s.gyro_rejected_at, s.imu_clock->rms_at_best, s.imu_clock->rms_rate);
   if (s.imu_clock) line += "; " + clock_verdict(*s.imu_clock, configured_offset);
+  const GravityStats& g = s.gravity;
+  if (g.levelled)
+    line += fmt::format("; the map's z is gravity's ({} windows of the accelerometer, rms tilt {:.3f} deg, accelerometer bias "
+                        "({:.3f}, {:.3f}, {:.3f}) m/s^2)",
+                        g.windows, g.rms_tilt_deg, g.accel_bias.x(), g.accel_bias.y(), g.accel_bias.z());
+  else
+    line += "; the map is not levelled by gravity (imu.level_map off, or no window of the accelerometer)";
   return line;
 }
 
@@ -347,6 +354,7 @@ Input open_input(const MapRunOptions& o) {
                         .gnss_file = o.gnss_file,
                         .gnss_topic = o.gnss_topic,
                         .use_imu = o.config.imu.use,
+                        .imu_levels_map = o.config.imu.level_map,
                         .imu_file = o.imu_file,
                         .imu_topic = o.imu_topic};
   if (is_bag_path(o.input)) {

@@ -135,6 +135,7 @@ TEST(DeskewDrive, AnImuTheConfigMisplacesIsNoLongerUsed) {
   ASSERT_TRUE(stats.gyro_rejected_at.has_value());
   EXPECT_LT(*stats.gyro_rejected_at, 20);
   EXPECT_LT(stats.gyro_deskewed, 20u);
+  EXPECT_FALSE(stats.gravity.levelled);  // its accelerometer is dropped with it
 }
 
 // The first 110 sweeps of `highway` (every realism key, 26-28 m/s on a straight road between guard

@@ -128,4 +128,20 @@ RelativePoseError relative_pose_error(const Poses& gt, const Poses& est) {
   return out;
 }
 
+VerticalError vertical_error(const Poses& gt, const Poses& est) {
+  if (gt.size() != est.size()) throw Error("vertical_error: trajectories differ in length");
+  VerticalError e;
+  double sum = 0.0;
+  for (size_t i = 0; i < gt.size(); ++i) {
+    const Eigen::Vector3d a = gt[i].linear().transpose() * Eigen::Vector3d::UnitZ();
+    const Eigen::Vector3d b = est[i].linear().transpose() * Eigen::Vector3d::UnitZ();
+    const double deg = std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI;
+    sum += deg * deg;
+    e.mean_deg += deg / double(gt.size());
+    e.max_deg = std::max(e.max_deg, deg);
+  }
+  if (!gt.empty()) e.rmse_deg = std::sqrt(sum / double(gt.size()));
+  return e;
+}
+
 }  // namespace gcmap

@@ -36,6 +36,13 @@ struct RelativePoseError {
 };
 RelativePoseError relative_pose_error(const Poses& gt, const Poses& est);
 
+// How far each estimated pose's vertical (its frame's view of the world's z) is from the truth's,
+// in degrees: for trajectories whose frames both have z up (gravity's), whatever their headings.
+struct VerticalError {
+  double rmse_deg = 0.0, mean_deg = 0.0, max_deg = 0.0;
+};
+VerticalError vertical_error(const Poses& gt, const Poses& est);
+
 // Rigid transform (no scale) minimizing sum |a_i - (R b_i + t)|^2.
 Eigen::Isometry3d umeyama_se3(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b);
 

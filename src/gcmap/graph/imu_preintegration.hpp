@@ -29,6 +29,7 @@ struct ImuNoise {
 // used, how it sits on the LiDAR, its clock and its noise.
 struct ImuConfig {
   bool use = true;
+  bool level_map = true;  // the accelerometer's gravity levels the global graph (mapping/gravity.hpp)
   // The IMU frame in the LiDAR frame: a translation (m) and roll, pitch, yaw (deg, applied in that
   // order about the LiDAR's fixed axes).
   double x = 0.0, y = 0.0, z = 0.0, roll_deg = 0.0, pitch_deg = 0.0, yaw_deg = 0.0;

@@ -304,13 +304,20 @@ void decide_gnss(InputAssumptions& a, const InputOptions& o) {
   state_gnss(a, a.gnss_path + (o.gnss_file.empty() ? ", found beside the scans" : ", --gnss"));
 }
 
-void take_imu(InputAssumptions& a, ImuStream stream, const std::string& path, const std::string& how) {
+// What the run does with an IMU: the gyro deskews (when deskewing is on), the accelerometer levels
+// the map (imu.level_map).
+std::string imu_use(bool deskewing, bool levels_map) {
+  const std::string gyro = deskewing ? "gyro deskews each sweep and predicts its rotation (its bias estimated from the registration)"
+                                     : "gyro not used (deskewing is off)";
+  const std::string accel = levels_map ? "accelerometer levels the map (gravity in the global graph, its bias estimated)"
+                                       : "accelerometer not used (imu.level_map off)";
+  if (!deskewing && !levels_map) return "read, not used: deskewing is off and so is imu.level_map";
+  return gyro + "; " + accel;
+}
+
+void take_imu(InputAssumptions& a, ImuStream stream, const std::string& path, const std::string& how, bool levels_map) {
   a.imu_path = path;
-  const bool timed = a.deskew.value == "on";
-  a.imu = {timed ? "gyro deskews each sweep and predicts its rotation (its bias estimated from the registration); "
-                   "accelerometer not used yet"
-                 : "read, not used: only the deskewing uses it, and it is off",
-           stream.describe(path) + ", " + how};
+  a.imu = {imu_use(a.deskew.value == "on", levels_map), stream.describe(path) + ", " + how};
   if (!a.stamps.empty() && (stream.samples.back().stamp < a.stamps.front() || stream.samples.front().stamp > a.stamps.back()))
     throw Error(path + ": the IMU stamps (" + std::to_string(stream.samples.front().stamp) + " to " +
                 std::to_string(stream.samples.back().stamp) + " s) do not overlap the scans' (" + std::to_string(a.stamps.front()) +
@@ -334,7 +341,7 @@ void decide_bag_imu(InputAssumptions& a, const InputOptions& o) {
     }
     topic = topics.front(), how = "the bag's only sensor_msgs/Imu topic";
   }
-  take_imu(a, read_bag_imu(*bag, topic), bag->path() + ": topic " + topic, how);
+  take_imu(a, read_bag_imu(*bag, topic), bag->path() + ": topic " + topic, how, o.imu_levels_map);
 }
 
 // --no-imu: none; --imu, else --imu-topic, else imu.txt beside the scans as times.txt is (bags:
@@ -357,7 +364,7 @@ void decide_imu(InputAssumptions& a, const InputOptions& o) {
   for (const fs::path& p : candidates) {
     if (!present(p)) continue;
     const std::string path = clean(p).string();
-    take_imu(a, read_imu_txt(path), path, o.imu_file.empty() ? "found beside the scans" : "--imu");
+    take_imu(a, read_imu_txt(path), path, o.imu_file.empty() ? "found beside the scans" : "--imu", o.imu_levels_map);
     return;
   }
   if (bag) decide_bag_imu(a, o);

@@ -294,7 +294,8 @@ void visit_imu(Config& c, Visitor& v) {
   v("imu", "use", c.imu.use,
     KeyDoc{"-", 0, 0, "odometry/",
            "Use the IMU the input carries (imu.txt beside the scans, --imu, a bag's sensor_msgs/Imu topic): its gyro deskews "
-           "each sweep and predicts its rotation. false: as without one (also --no-imu)."});
+           "each sweep and predicts its rotation, its accelerometer levels the map (level_map). false: as without one (also "
+           "--no-imu)."});
   v("imu", "x", c.imu.x, KeyDoc{"m", -10, 10, "odometry/", "The IMU's origin in the LiDAR frame (T_lidar_imu): x."});
   v("imu", "y", c.imu.y, KeyDoc{"m", -10, 10, "odometry/", "The IMU's origin in the LiDAR frame: y."});
   v("imu", "z", c.imu.z, KeyDoc{"m", -10, 10, "odometry/", "The IMU's origin in the LiDAR frame: z."});
@@ -312,6 +313,15 @@ void visit_imu(Config& c, Visitor& v) {
     KeyDoc{"rad/s/sqrt(Hz)", 0, 1, "odometry/",
            "Gyro white noise density (default: a MEMS IMU built into a LiDAR, inflated for vibration). A sweep takes the gyro's "
            "change of the turn rate only as far as it stands above this noise."});
+  v("imu", "accel_noise", c.imu.noise.accel_noise,
+    KeyDoc{"m/s^2/sqrt(Hz)", 0, 10, "mapping/",
+           "Accelerometer white noise density (default: a MEMS IMU built into a LiDAR, inflated for vibration); part of the "
+           "weight of each gravity window (level_map)."});
+  v("imu", "level_map", c.imu.level_map,
+    KeyDoc{"-", 0, 0, "mapping/",
+           "The accelerometer's gravity, measured over every submap's last 2 s of odometry, holds the global graph level: the "
+           "map's z is gravity's, and the accelerometer's bias is estimated with it. false: the map stays in the first scan's "
+           "frame."});
 }
 
 template <typename Config, typename Visitor>

@@ -87,10 +87,11 @@ Matrix6d odometry_factor_information() {
 }
 
 GlobalMapper::GlobalMapper(const GlobalMappingConfig& config, const LoopConfig& loop,
-                           std::shared_ptr<LinearizationBackend> backend, const GnssConfig& gnss)
+                           std::shared_ptr<LinearizationBackend> backend, const GnssConfig& gnss, const ImuConfig& imu)
     : config_(config),
       loop_(loop),
       gnss_(gnss),
+      imu_(imu),
       backend_(std::move(backend)),
       lazy_(config.relinearize == Relinearize::moved ? std::make_shared<LazyBackend>(backend_, config.relinearize_threshold)
                                                      : nullptr),
@@ -115,11 +116,58 @@ void GlobalMapper::add_factor(GlobalFactor f) {
   factors_.push_back(std::move(f));
 }
 
+void GlobalMapper::add_unary(FactorGraph& g) const {
+  for (const auto& f : gnss_factors_) g.add(f);
+  for (const auto& f : gravity_factors_) g.add(f);
+  if (accel_bias_prior_) g.add(accel_bias_prior_);
+  if (gauge_ && !georeferenced_) g.add(gauge_);
+}
+
 FactorGraph GlobalMapper::graph() const {
   FactorGraph g;
   for (const GlobalFactor& f : factors_) g.add(f.factor);
-  for (const auto& f : gnss_factors_) g.add(f);
+  add_unary(g);
   return g;
+}
+
+namespace {
+// How far a window's up may stray (in its sigmas) before it counts less: an odometry failure
+// inside a window puts its velocities, and so its gravity, wrong.
+constexpr double kGravityHuber = 3.0;
+// The prior on the accelerometer's bias (m/s^2): a MEMS IMU after its factory calibration.
+constexpr double kAccelBiasPrior = 0.1;
+// The hold on submap 0's position and heading once roll and pitch are free (m, and the sine of the heading).
+constexpr double kGaugeSigma = 1e-4;
+}  // namespace
+
+void GlobalMapper::level_world(const Eigen::Vector3d& up_world) {
+  const Eigen::Isometry3d R_level(Eigen::Quaterniond::FromTwoVectors(up_world, Eigen::Vector3d::UnitZ()));
+  for (auto& [key, T] : values_)  // about submap 0's origin, the world origin
+    if (key != kAccelBiasKey) T = normalized(R_level * T);
+  gauge_ = std::make_shared<HeadingPositionFactor>(0, values_.at(0), kGaugeSigma);
+}
+
+void GlobalMapper::take_gravity(const GravityWindow& window) {
+  if (!gauge_ && !georeferenced_) level_world(values_.at(window.submap).linear() * window.up(Eigen::Vector3d::Zero()));
+  if (!accel_bias_prior_) {
+    values_[kAccelBiasKey] = Eigen::Isometry3d::Identity();
+    accel_bias_prior_ = std::make_shared<AccelBiasPriorFactor>(kAccelBiasKey, kAccelBiasPrior);
+  }
+  gravity_factors_.push_back(
+      std::make_shared<GravityFactor>(window, kAccelBiasKey, imu_.gravity, RobustKernel::huber(kGravityHuber)));
+}
+
+Eigen::Vector3d GlobalMapper::accel_bias() const {
+  const auto it = values_.find(kAccelBiasKey);
+  if (it == values_.end()) return Eigen::Vector3d::Zero();
+  return it->second.translation();
+}
+
+void GlobalMapper::drop_gravity() {
+  gravity_factors_.clear();
+  accel_bias_prior_.reset();
+  gauge_.reset();
+  values_.erase(kAccelBiasKey);
 }
 
 void GlobalMapper::add_gnss_factor(const GnssMeasurement& m) {
@@ -172,12 +220,14 @@ bool GlobalMapper::try_georeference() {
       lateral_spread(enu) < std::max(gnss_.align_distance / 6.0, 3.0 * sigma))
     return false;
   const Eigen::Isometry3d T_enu_world = fit_yaw_translation(world, enu, weights);
-  for (auto& [key, T] : values_) T = normalized(T_enu_world * T);
+  for (auto& [key, T] : values_)
+    if (key != kAccelBiasKey) T = normalized(T_enu_world * T);
   georeferenced_ = true;
   return true;
 }
 
-void GlobalMapper::insert(Submap s, LoopDetector* loops, std::vector<GnssMeasurement> gnss) {
+void GlobalMapper::insert(Submap s, LoopDetector* loops, std::vector<GnssMeasurement> gnss,
+                          std::optional<GravityWindow> gravity) {
   const int id = s.id;
   if (id == 0) {
     values_[0] = Eigen::Isometry3d::Identity();
@@ -188,6 +238,7 @@ void GlobalMapper::insert(Submap s, LoopDetector* loops, std::vector<GnssMeasure
   submaps_.push_back(std::move(s));
   const Submap& cur = submaps_.back();
   take_gnss(std::move(gnss));
+  if (gravity) take_gravity(*gravity);
   if (id == 0) {
     stats_.per_submap.push_back({1, 0, 0.0, 0});
     return;
@@ -251,7 +302,7 @@ FactorGraph GlobalMapper::without_revisit_factors() const {
     steer.add(f.factor);
     constrained[f.source] = constrained[f.target] = 1;
   }
-  for (const auto& f : gnss_factors_) steer.add(f);
+  add_unary(steer);
   // A submap held only by revisit factors keeps them (LM needs every pose constrained).
   for (const GlobalFactor& f : factors_)
     if (revisit(f) && (!constrained[f.source] || !constrained[f.target])) steer.add(f.factor);
@@ -291,7 +342,7 @@ int GlobalMapper::connect_overlapping(int id, int first) {
 
 void GlobalMapper::optimize_final(std::optional<int> max_iterations, const IterationCallback& on_iteration) {
   const int iterations = max_iterations ? std::min(*max_iterations, config_.final_iterations) : config_.final_iterations;
-  if ((factors_.empty() && gnss_factors_.empty()) || iterations <= 0) return;
+  if ((factors_.empty() && gnss_factors_.empty() && gravity_factors_.empty()) || iterations <= 0) return;
   LevenbergMarquardt final_lm(lm_config(config_, iterations), lm_backend());
   final_lm.on_iteration(on_iteration);
   if (lazy_) lazy_->set_max_relinearizations(0);  // what insertions deferred is caught up here

@@ -8,10 +8,12 @@
 
 #include "gcmap/core/timer.hpp"
 #include "gcmap/graph/gnss_factor.hpp"
+#include "gcmap/graph/gravity_factor.hpp"
 #include "gcmap/graph/lazy_backend.hpp"
 #include "gcmap/graph/levenberg_marquardt.hpp"
 #include "gcmap/mapping/config.hpp"
 #include "gcmap/mapping/factor_kind.hpp"
+#include "gcmap/mapping/gravity.hpp"
 #include "gcmap/mapping/loop_detector.hpp"
 #include "gcmap/mapping/submap.hpp"
 
@@ -71,14 +73,19 @@ class GlobalMapper {
  public:
   // Of loop: whether explicit loops are on, exclude_recent and the loop constraint.
   GlobalMapper(const GlobalMappingConfig& config, const LoopConfig& loop, std::shared_ptr<LinearizationBackend> backend,
-               const GnssConfig& gnss = {});
+               const GnssConfig& gnss = {}, const ImuConfig& imu = {});
 
   // Inserts the next submap (ids in order), connects and optimizes it; `loops` (may be null) is
   // asked for an explicit loop in full mode.
   // gnss: the fixes placed on this submap. Until the fixes span gnss.align_distance they wait and
   // submap 0 is held fixed; then every pose is moved onto them by fit_yaw_translation (the world
   // becomes the local ENU frame), they become GnssPositionFactors, and no pose is held any more.
-  void insert(Submap submap, LoopDetector* loops, std::vector<GnssMeasurement> gnss = {});
+  // gravity: the accelerometer's window tied to this submap. The first levels the world about
+  // submap 0's origin (its heading and position kept); each becomes a GravityFactor on the submap
+  // and the accelerometer's bias (a variable of the graph, kAccelBiasKey), and submap 0 is held by
+  // its position and heading only (until georeferenced: then by nothing).
+  void insert(Submap submap, LoopDetector* loops, std::vector<GnssMeasurement> gnss = {},
+              std::optional<GravityWindow> gravity = std::nullopt);
   // The final optimization, to a 1e-6 relative tolerance, of at most global.final_iterations
   // (or max_iterations when given; 0 skips it); on_iteration after each of its iterations.
   void optimize_final(std::optional<int> max_iterations = std::nullopt, const IterationCallback& on_iteration = {});
@@ -96,13 +103,27 @@ class GlobalMapper {
   const std::vector<std::shared_ptr<GnssPositionFactor>>& gnss_factors() const { return gnss_factors_; }
   const std::vector<GnssMeasurement>& gnss_measurements() const { return gnss_used_; }  // in gnss_factors() order
   size_t gnss_waiting() const { return gnss_pending_.size(); }
+  // The world's z is gravity's (held there by the accelerometer).
+  bool levelled() const { return !gravity_factors_.empty(); }
+  const std::vector<std::shared_ptr<GravityFactor>>& gravity_factors() const { return gravity_factors_; }
+  Eigen::Vector3d accel_bias() const;  // m/s^2, IMU frame; zero before the first window
+  // The pose that carries the accelerometer's bias in the graph (its translation).
+  const Eigen::Isometry3d& accel_bias_pose() const { return values_.at(kAccelBiasKey); }
+  static constexpr int kAccelBiasKey = -1;
+  // Forgets the accelerometer (the IMU was found misplaced): submap 0 is held again where it is.
+  void drop_gravity();
 
  private:
   void add_factor(GlobalFactor f);
   void take_gnss(std::vector<GnssMeasurement> gnss);
   bool try_georeference();
   void add_gnss_factor(const GnssMeasurement& m);
-  std::set<int> fixed() const { return georeferenced_ ? std::set<int>{} : std::set<int>{0}; }
+  void take_gravity(const GravityWindow& window);
+  void level_world(const Eigen::Vector3d& up_world);
+  std::set<int> fixed() const { return georeferenced_ || gauge_ ? std::set<int>{} : std::set<int>{0}; }
+  // The factors not between submaps: GNSS fixes, gravity, and the hold on submap 0 while
+  // levelled but not georeferenced.
+  void add_unary(FactorGraph& g) const;
   FactorGraph graph() const;
   std::shared_ptr<LinearizationBackend> lm_backend() const;
   void count_linearizations();
@@ -121,6 +142,10 @@ class GlobalMapper {
   bool georeferenced_ = false;
   std::vector<GnssMeasurement> gnss_pending_, gnss_used_;
   std::vector<std::shared_ptr<GnssPositionFactor>> gnss_factors_;
+  ImuConfig imu_;
+  std::vector<std::shared_ptr<GravityFactor>> gravity_factors_;
+  std::shared_ptr<AccelBiasPriorFactor> accel_bias_prior_;
+  std::shared_ptr<HeadingPositionFactor> gauge_;
   std::shared_ptr<LinearizationBackend> backend_;
   std::shared_ptr<LazyBackend> lazy_;  // between LM and backend_ when global.relinearize is moved
   std::vector<Submap> submaps_;

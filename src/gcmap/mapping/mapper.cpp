@@ -25,7 +25,7 @@ Mapper::Mapper(const MappingConfig& config, std::shared_ptr<LinearizationBackend
       backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
       local_(config_.local, config_.global, config_.loop, backend_),
       loops_(config_.loop),
-      global_(config_.global, config_.loop, backend_, config_.gnss) {}
+      global_(config_.global, config_.loop, backend_, config_.gnss, config_.imu) {}
 
 FrameStatus Mapper::add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom,
                               std::optional<KeyframeShape> shape, double stamp) {
@@ -54,7 +54,62 @@ void Mapper::insert(Submap submap) {
   }
   loops_.add_submap(submap);
   std::vector<GnssMeasurement> fixes = place_fixes(submap);
-  global_.insert(std::move(submap), &loops_, std::move(fixes));
+  std::optional<GravityWindow> gravity = gravity_window(submap);
+  global_.insert(std::move(submap), &loops_, std::move(fixes), gravity);
+}
+
+void Mapper::add_imu(const ImuSample& sample) {
+  if (!config_.imu.use || !config_.imu.level_map || gravity_dropped_) return;
+  ImuSample s = sample;
+  s.stamp -= config_.imu.time_offset;
+  if (!imu_.empty() && !(s.stamp > imu_.back().stamp)) throw Error("Mapper: IMU stamps must increase");
+  imu_.push_back(s);
+}
+
+void Mapper::drop_gravity() {
+  gravity_dropped_ = true;
+  imu_.clear();
+  global_.drop_gravity();
+}
+
+namespace {
+// The gravity window's length (s): its error is that of three positions over its length, so a
+// longer window sees gravity better, as long as the odometry holds its positions over it.
+constexpr double kGravityWindow = 4.0;
+}  // namespace
+
+std::optional<GravityWindow> Mapper::gravity_window(const Submap& inserting) {
+  if (imu_.empty() || frames_.size() < 3) return std::nullopt;
+  const size_t b = frames_.size() - 1;
+  size_t a = b;
+  while (a > 0 && stamps_[b] - stamps_[a - 1] <= kGravityWindow) --a;
+  size_t m = a;
+  while (m + 1 < b && stamps_[m + 1] - stamps_[a] <= stamps_[b] - stamps_[m + 1]) ++m;
+  if (b - a < 2 || m == a) return std::nullopt;
+  std::vector<OdometryFrame> window;
+  for (size_t k = a; k <= b; ++k) window.push_back({stamps_[k], frames_[k].T_odom});
+  std::optional<GravityWindow> w =
+      gcmap::gravity_window(imu_, window, 0, m - a, b - a, config_.imu, inserting.T_odom);
+  if (w) w->submap = inserting.id;
+  const auto keep = std::lower_bound(imu_.begin(), imu_.end(), stamps_[a] - 1.0,
+                                     [](const ImuSample& x, double t) { return x.stamp < t; });
+  imu_.erase(imu_.begin(), keep);
+  return w;
+}
+
+GravityStats Mapper::gravity_stats() const {
+  GravityStats s;
+  s.levelled = global_.levelled();
+  s.accel_bias = global_.accel_bias();
+  const auto& factors = global_.gravity_factors();
+  s.windows = factors.size();
+  double sum = 0.0;
+  for (const auto& f : factors) {
+    s.downweighted += f->weight() < 1.0;
+    sum += std::pow(f->tilt(global_.pose(f->keys()[0]), global_.accel_bias_pose()), 2);
+  }
+  if (!factors.empty()) s.rms_tilt_deg = std::sqrt(sum / double(factors.size())) * 180.0 / M_PI;
+  return s;
 }
 
 void Mapper::set_gnss(std::vector<GnssPosition> fixes) {
@@ -151,7 +206,16 @@ Eigen::Isometry3d Mapper::world_pose(int f) const {
 Eigen::Isometry3d Mapper::output_from_world() const {
   // Georeferenced: the world is the local ENU frame, and so is the output.
   if (global_.georeferenced()) return Eigen::Isometry3d::Identity();
-  return frames_.empty() ? Eigen::Isometry3d::Identity() : world_pose(0).inverse();
+  if (frames_.empty()) return Eigen::Isometry3d::Identity();
+  if (!global_.levelled()) return world_pose(0).inverse();
+  // Levelled: the first frame's position and heading, with the world's z.
+  const Eigen::Isometry3d T0 = world_pose(0);
+  Eigen::Vector3d heading = T0.linear().col(0);
+  heading.z() = 0.0;
+  Eigen::Isometry3d T_world_out = Eigen::Isometry3d::Identity();
+  T_world_out.linear() = Eigen::AngleAxisd(std::atan2(heading.y(), heading.x()), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T_world_out.translation() = T0.translation();
+  return T_world_out.inverse();
 }
 
 Eigen::Isometry3d Mapper::frame_pose(int frame) const { return normalized(output_from_world() * world_pose(frame)); }
@@ -287,9 +351,9 @@ PointCloud assemble_map(const std::vector<Submap>& submaps, const std::vector<Ei
 
 PointCloud Mapper::assemble_map(double resolution, size_t block_points) const {
   // Points (and intensities) in the output frame (first frame identity, like the trajectory).
-  const Eigen::Isometry3d T_out_world = !global_.georeferenced() && !frames_.empty() && frames_[0].submap >= 0
-                                            ? keyframe_world(0).inverse()
-                                            : Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_out_world = Eigen::Isometry3d::Identity();
+  if (global_.georeferenced() || global_.levelled()) T_out_world = output_from_world();
+  else if (!frames_.empty() && frames_[0].submap >= 0) T_out_world = keyframe_world(0).inverse();
   std::vector<Eigen::Isometry3d> placements;
   for (const Submap& s : submaps()) placements.push_back(T_out_world * global_.pose(s.id));
   return gcmap::assemble_map(submaps(), placements, resolution, block_points);

@@ -39,6 +39,15 @@ struct GnssStats {
   bool georeferenced = false;
 };
 
+// What the accelerometer did to the global graph.
+struct GravityStats {
+  size_t windows = 0;     // a GravityFactor each
+  size_t downweighted = 0;  // beyond the Huber width at the last linearization
+  bool levelled = false;  // the map's z is gravity's
+  Eigen::Vector3d accel_bias = Eigen::Vector3d::Zero();  // m/s^2, IMU frame
+  double rms_tilt_deg = 0.0;  // of the windows' up against the map's z, at the final poses
+};
+
 struct MapperStats {
   LocalMappingStats local;
   GlobalMappingStats global;
@@ -61,6 +70,14 @@ class Mapper {
   void set_gnss(std::vector<GnssPosition> fixes);
   bool georeferenced() const { return global_.georeferenced(); }
   GnssStats gnss_stats() const;
+  // An IMU sample (on the IMU's clock, in its frame; imu.time_offset and T_lidar_imu apply), before
+  // the frames it spans: each closing submap gets the accelerometer's gravity over the last
+  // seconds of odometry (mapping/gravity.hpp). Ignored unless imu.use and imu.level_map.
+  void add_imu(const ImuSample& sample);
+  // The IMU was found misplaced (its gyro disagrees): no more gravity, and none of what was taken.
+  void drop_gravity();
+  bool levelled() const { return global_.levelled(); }
+  GravityStats gravity_stats() const;
   // A frame's sweep deskewed again (SweepRevision), before the next frame is added: its odometry
   // pose, and its cloud when it is a keyframe. True when the cloud was taken; a frame whose submap
   // has closed keeps its place.
@@ -99,6 +116,8 @@ class Mapper {
   // The fixes from next_fix_ that can be placed now (their frames are in closed submaps, or in
   // `inserting`, which the global mapper does not hold yet).
   std::vector<GnssMeasurement> place_fixes(const Submap& inserting);
+  // The gravity window over the last seconds of frames, in the frame of `inserting`.
+  std::optional<GravityWindow> gravity_window(const Submap& inserting);
   // A frame's pose in its anchor's submap; nullopt while that submap is open.
   std::optional<std::pair<int, Eigen::Isometry3d>> in_submap(int frame, const Submap& inserting) const;
   Eigen::Isometry3d keyframe_world(int keyframe) const;
@@ -113,6 +132,8 @@ class Mapper {
   std::vector<double> stamps_;
   std::vector<GnssPosition> fixes_;
   size_t next_fix_ = 0, fixes_outside_ = 0, fixes_gaps_ = 0;
+  std::vector<ImuSample> imu_;  // LiDAR clock, IMU frame
+  bool gravity_dropped_ = false;
 };
 
 }  // namespace gcmap

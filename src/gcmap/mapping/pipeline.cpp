@@ -107,6 +107,7 @@ void MappingPipeline::add_imu(const ImuSample& sample) {
   if (finished_) throw Error("add_imu: the pipeline is finished");
   if (!config_.imu.use) return;
   odometry_.add_imu(sample);
+  mapper_.add_imu(sample);
   ++imu_samples_;
 }
 
@@ -147,6 +148,7 @@ MappingPipeline::Tracked MappingPipeline::track_frame(PreparedScan scan, std::op
                  "(check imu.roll_deg, pitch_deg and yaw_deg)",
                  f.index);
     gyro_warned_ = true;
+    t.imu_rejected = true;
   }
   frame_figures_.push_back({e.quality, e.deskew_shift, scan.cloud != nullptr});
   if (e.revised) odometry_poses_[e.revised->frame] = e.revised->T_world_frame;
@@ -174,6 +176,7 @@ MappingPipeline::Tracked MappingPipeline::track_frame(PreparedScan scan, std::op
 
 Frame MappingPipeline::map_frame(Tracked t) {
   Frame& f = t.frame;
+  if (t.imu_rejected) mapper_.drop_gravity();
   if (t.revised) mapper_.revise_frame(t.revised->frame, t.revised->cloud, t.revised->T_world_frame);
   f.status = mapper_.add_frame(f.index, t.cloud, f.T_odom, std::move(t.keyframe), f.stamp);
   if (f.status == FrameStatus::unusable && t.cloud) ++unusable_frames_;
@@ -199,6 +202,7 @@ PipelineStats MappingPipeline::stats() const {
   s.gyro_bias = odometry_.gyro_bias();
   s.imu_clock = odometry_.imu_clock_check();
   s.gyro_rejected_at = odometry_.gyro_rejected_at();
+  s.gravity = mapper_.gravity_stats();
   s.preprocess = preprocess_ms_;
   s.odometry = odometry_ms_;
   s.mapper = mapper_.stats();

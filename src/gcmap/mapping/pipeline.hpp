@@ -50,6 +50,7 @@ struct PipelineStats {
   Eigen::Vector3d gyro_bias = Eigen::Vector3d::Zero();  // rad/s, LiDAR frame, the last estimate
   std::optional<GyroTrack::ClockCheck> imu_clock;       // the gyro's rates against the registered ones
   std::optional<int> gyro_rejected_at;                  // see SweepOdometry::gyro_rejected_at
+  GravityStats gravity;                                 // the accelerometer in the global graph
   TimingStats preprocess, odometry;  // preprocess overlaps the other stages in run()
   MapperStats mapper;
   double seconds = 0.0;  // from construction to finish()
@@ -93,7 +94,8 @@ class MappingPipeline {
   // called after each iteration of the final optimization.
   void finish(std::optional<int> max_final_iterations = std::nullopt, const IterationCallback& on_iteration = {});
   bool finished() const { return finished_; }
-  // An IMU sample (SweepOdometry::add_imu), before the scans it spans; ignored unless imu.use.
+  // An IMU sample (SweepOdometry::add_imu, Mapper::add_imu), before the scans it spans; ignored
+  // unless imu.use.
   void add_imu(const ImuSample& sample);
   // GNSS fixes for the global graph (Mapper::set_gnss), before the first scan.
   void set_gnss(std::vector<GnssPosition> fixes) { mapper_.set_gnss(std::move(fixes)); }
@@ -149,6 +151,7 @@ class MappingPipeline {
     std::shared_ptr<PointCloud> cloud;
     std::optional<KeyframeShape> keyframe;  // the prepared one, while the cloud was not deskewed
     std::optional<SweepRevision> revised;
+    bool imu_rejected = false;  // the odometry dropped the IMU at this frame: so does the mapper
   };
   Tracked track_frame(PreparedScan scan, std::optional<Eigen::Isometry3d> T_odom);
   Frame map_frame(Tracked t);

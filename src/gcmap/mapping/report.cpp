@@ -67,6 +67,12 @@ Json graph_json(const MappingPipeline& pipeline, int frame_offset) {
   return graph;
 }
 
+std::string map_frame_description(const Mapper& mapper) {
+  if (mapper.georeferenced()) return "local ENU at the first GNSS fix (x east, y north, z up)";
+  if (mapper.levelled()) return "the first frame's position and heading, z up (levelled by the IMU's gravity)";
+  return "the first frame";
+}
+
 Json stats_json(const MappingPipeline& pipeline) {
   const PipelineStats ps = pipeline.stats();
   const MapperStats& ms = ps.mapper;
@@ -74,6 +80,7 @@ Json stats_json(const MappingPipeline& pipeline) {
   stats["frames"] = ps.frames;
   stats["unusable_scans"] = ps.unusable;
   stats["odometry_failures"] = ps.odometry_failures;
+  stats["map_frame"] = map_frame_description(pipeline.mapper());
   if (ps.imu_samples > 0) {
     Json imu = Json::object(), bias = Json::array();
     for (int i = 0; i < 3; ++i) bias.push_back(ps.gyro_bias[i]);
@@ -90,6 +97,15 @@ Json stats_json(const MappingPipeline& pipeline) {
       clock["windows"] = ps.imu_clock->windows;
       imu["clock_check"] = clock;
     }
+    const GravityStats& g = ps.gravity;
+    Json gravity = Json::object(), ab = Json::array();
+    for (int k = 0; k < 3; ++k) ab.push_back(g.accel_bias[k]);
+    gravity["levelled"] = g.levelled;  // the map's z is gravity's
+    gravity["windows"] = g.windows;
+    gravity["downweighted"] = g.downweighted;
+    gravity["accel_bias_m_s2"] = ab;  // IMU frame, the estimate at the end
+    gravity["rms_tilt_deg"] = g.rms_tilt_deg;  // of the windows' up against the map's z
+    imu["gravity"] = gravity;
     stats["imu"] = imu;
   }
   stats["seconds"] = ps.seconds;
