@@ -236,6 +236,7 @@ Eigen::Matrix3d wall_levelling(const Session& s) {
 std::pair<Eigen::Matrix3d, std::string> grid_levelling(const std::string& out) {
   const fs::path session = fs::path(out) / "session";
   if (recorded_enu_origin(out)) return {Eigen::Matrix3d::Identity(), "none: the map frame is local ENU (GNSS)"};
+  if (recorded_gravity_level(out)) return {Eigen::Matrix3d::Identity(), "none: the map frame is levelled by the IMU's gravity"};
   if (!fs::exists(session / "manifest.yaml")) return {Eigen::Matrix3d::Identity(), "none: no session/ to find walls in"};
   const Eigen::Matrix3d R = wall_levelling(read_session(session.string()));
   char text[160];
@@ -246,14 +247,28 @@ std::pair<Eigen::Matrix3d, std::string> grid_levelling(const std::string& out) {
 
 }  // namespace
 
+namespace {
+YAML::Node read_stats(const fs::path& stats) {
+  try {
+    return YAML::Load(read_file(stats.string()));
+  } catch (const YAML::Exception& e) { throw Error(stats.string() + ": not valid JSON (" + e.msg + ")"); }
+}
+}  // namespace
+
+bool recorded_gravity_level(const std::string& out) {
+  const fs::path stats = fs::path(out) / "stats.json";
+  if (!fs::exists(stats)) return false;
+  const YAML::Node root = read_stats(stats);
+  const YAML::Node imu = root["imu"];
+  if (!imu || !imu.IsMap() || !imu["gravity"] || !imu["gravity"].IsMap()) return false;
+  const YAML::Node level = imu["gravity"]["levelled"];
+  return level && level.as<bool>(false);
+}
+
 std::optional<Geodetic> recorded_enu_origin(const std::string& out) {
   const fs::path stats = fs::path(out) / "stats.json";
   if (!fs::exists(stats)) return std::nullopt;
-  YAML::Node root;
-  try {
-    root = YAML::Load(read_file(stats.string()));
-  } catch (const YAML::Exception& e) { throw Error(stats.string() + ": not valid JSON (" + e.msg + ")"); }
-  const YAML::Node gnss = root["gnss"];
+  const YAML::Node gnss = read_stats(stats)["gnss"];
   if (!gnss || !gnss["georeferenced"] || !gnss["georeferenced"].as<bool>(false)) return std::nullopt;
   const YAML::Node o = gnss["enu_origin"];
   if (!o || !o.IsSequence() || o.size() != 3) throw Error(stats.string() + ": gnss.enu_origin is not [lat, lon, alt]");

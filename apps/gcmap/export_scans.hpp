@@ -42,6 +42,8 @@ struct GridResult {
 
 // The ENU origin of a run that GNSS georeferenced (OUT/stats.json "gnss"); none otherwise.
 std::optional<Geodetic> recorded_enu_origin(const std::string& out);
+// Whether the run in `out` had its map levelled by an IMU's gravity (stats.json).
+bool recorded_gravity_level(const std::string& out);
 
 // The grid is made in the map frame levelled by its walls (levelling_rotation over the session's
 // submaps), so that it is projected along gravity rather than along the first scan's lean; not for

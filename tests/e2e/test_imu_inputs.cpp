@@ -102,6 +102,11 @@ TEST_F(ImuInputs, TheAccelerometerLevelsTheMap) {
   EXPECT_NE(stats.find("\"map_frame\":\"the first frame's position and heading, z up"), std::string::npos) << stats;
   EXPECT_NE(stats.find("\"gravity\":{\"levelled\":true"), std::string::npos) << stats;
   EXPECT_NE(stats.find("accelerometer levels the map"), std::string::npos) << stats;
+  // The occupancy grid needs no levelling by walls.
+  const CliRun grid = run_gcmap("export " + out("level-imu") + " --grid --quiet -o " + out("level-grid"));
+  ASSERT_EQ(grid.code, 0) << grid.err;
+  EXPECT_NE(slurp(out("level-grid") + "/export.json").find("none: the map frame is levelled by the IMU's gravity"),
+            std::string::npos);
   // imu.level_map off: the gyro still deskews, the map stays in the first frame.
   const std::string config = out("no-level.yaml");
   std::ofstream(config) << "imu:\n  level_map: false\n";
