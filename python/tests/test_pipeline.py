@@ -123,6 +123,8 @@ def test_imu_from_python_equals_the_cli(tmp_path):
         pipeline.add_scan(points, float(stamps[i]), times=times)
     pipeline.finish()
     assert pipeline.stats["imu"]["gyro_deskewed_sweeps"] == frames - 2
+    assert pipeline.stats["imu"]["gravity"]["levelled"]  # the accelerometer levelled the map, as in the CLI
+    assert "z up" in pipeline.stats["map_frame"]
     cli_poses = gcmap.read_trajectory(str(tmp_path / "out" / "trajectory.kitti"))
     np.testing.assert_allclose(cli_poses, pipeline.trajectory, atol=1e-6)
     with pytest.raises(ValueError, match="gyro: expected shape"):
