@@ -255,5 +255,51 @@ TEST(SimRealism, SolidStateAndHighResolutionSensors) {
   EXPECT_THROW(sim::Simulator{cfg}, Error);
 }
 
+// A person walking with the sensor in hand: walking pace, a gait's bounce, glances aside at up to
+// about 190 deg/s; the Mid-360-like sensor sees all around, from 7 deg below the horizon to 52 above.
+TEST(SimRealism, HandheldWalksBouncesAndGlancesWithAMid360) {
+  sim::SimulationConfig cfg = config("handheld", 450, sim::parse_realism("motion_distortion"));
+  cfg.sensor = "mid360";
+  const sim::Simulator sim(cfg);
+  double max_rate_deg = 0.0, length = 0.0;
+  std::vector<double> z;
+  for (double t = 0.0; t < 44.0; t += 0.01) {
+    const Eigen::Isometry3d a = sim.pose_at_time(t), b = sim.pose_at_time(t + 0.01);
+    max_rate_deg = std::max(max_rate_deg, rotation_angle(a.inverse() * b) / 0.01 * 180.0 / M_PI);
+    length += (b.translation() - a.translation()).norm();
+    z.push_back(a.translation().z());
+  }
+  std::printf("handheld: fastest turn %.0f deg/s, mean speed %.2f m/s\n", max_rate_deg, length / 44.0);
+  EXPECT_GT(max_rate_deg, 150.0);
+  EXPECT_LT(max_rate_deg, 260.0);
+  EXPECT_GT(length / 44.0, 0.7);  // waits at crossings included
+  EXPECT_LT(length / 44.0, 1.5);
+  // The bounce: the height less its one-second mean, while walking (from 10 s on).
+  double bounce = 0.0;
+  for (size_t i = 1050; i + 50 < z.size(); ++i) {
+    double mean = 0.0;
+    for (size_t j = i - 50; j < i + 50; ++j) mean += z[j] / 100.0;
+    bounce = std::max(bounce, std::abs(z[i] - mean));
+  }
+  std::printf("handheld: bounce %.3f m\n", bounce);
+  EXPECT_GT(bounce, 0.01);
+  EXPECT_LT(bounce, 0.06);
+  const PointCloud scan = sim.scan(100);
+  EXPECT_GT(scan.size(), 5000u);
+  ASSERT_TRUE(scan.has_times());
+  std::set<int> octants;
+  float t_max = 0.f;
+  for (size_t i = 0; i < scan.size(); ++i) {
+    const Eigen::Vector3f d = scan.points[i].normalized();
+    const float el = std::asin(d.z()) * 180.f / static_cast<float>(M_PI);
+    ASSERT_GT(el, -7.5f);
+    ASSERT_LT(el, 52.5f);
+    octants.insert(std::min(7, static_cast<int>(std::floor((std::atan2(d.y(), d.x()) + M_PI) / (M_PI / 4)))));
+    t_max = std::max(t_max, scan.times[i]);
+  }
+  EXPECT_EQ(octants.size(), 8u);
+  EXPECT_GT(t_max, 0.095f);
+}
+
 }  // namespace
 }  // namespace gcmap

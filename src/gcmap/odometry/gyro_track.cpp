@@ -1,5 +1,6 @@
 #include "gcmap/odometry/gyro_track.hpp"
 
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -18,6 +19,8 @@ constexpr double kBiasGain = 0.02;
 // rad/s: a correction beyond this is a registration gone wrong, not a bias (MEMS gyros stay
 // within a few hundredths of a rad/s).
 constexpr double kMaxBiasStep = 0.05;
+// rad: an IMU whose axes fit the registered rates best turned by more than this is misplaced.
+constexpr double kMisplacedAngle = 20.0 * M_PI / 180.0;
 
 }  // namespace
 
@@ -94,6 +97,7 @@ void GyroTrack::compare_rate(double t0, double t1, const Eigen::Vector3d& regist
       sum += (i == 0 || i == steps ? 0.5 : 1.0) * rate(k, t);
     }
     shift_sse_[static_cast<size_t>(j)] += (sum / steps - registered).squaredNorm();
+    if (j == kShiftSteps) registered_gyro_ += registered * (sum / steps).transpose();
   }
   rate_sse_ += registered.squaredNorm();
   ++shift_windows_;
@@ -111,9 +115,24 @@ std::optional<GyroTrack::ClockCheck> GyroTrack::clock_check() const {
   return c;
 }
 
+Eigen::Matrix3d GyroTrack::best_rotation() const {
+  // Wahba's problem: the rotation R maximizing sum registered . (R gyro) = tr(R H^T).
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(registered_gyro_, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
+  D(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
+  return svd.matrixU() * D * svd.matrixV().transpose();
+}
+
 bool GyroTrack::disagrees() const {
   const std::optional<ClockCheck> c = clock_check();
-  return c && c->windows >= 15 && c->rms_at_best > 0.02 && c->rms_at_best > 0.5 * c->rms_rate;
+  if (!c || c->windows < 15 || !(c->rms_at_best > 0.02 && c->rms_at_best > 0.5 * c->rms_rate)) return false;
+  // A registration that errs (a handheld sensor's fast turns) misfits a right gyro as much; a
+  // misplaced one is told by a rotation of its axes fitting clearly better. The fit at R:
+  // sum |registered - R gyro|^2 = sum |registered - gyro|^2 - 2 tr((R - I) H^T).
+  const Eigen::Matrix3d R = best_rotation();
+  const double sse_zero = shift_sse_[kShiftSteps];
+  const double sse_best = sse_zero - 2.0 * ((R - Eigen::Matrix3d::Identity()) * registered_gyro_.transpose()).trace();
+  return so3_log(R).norm() > kMisplacedAngle && sse_best < 0.25 * sse_zero;
 }
 
 void GyroTrack::forget_before(double t) {

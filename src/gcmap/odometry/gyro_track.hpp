@@ -46,8 +46,11 @@ class GyroTrack {
   std::optional<ClockCheck> clock_check() const;
   // The gyro does not follow the registered rotation at any shift (the rotation of T_lidar_imu
   // wrong, another sensor's IMU): after 15 windows, its rates miss the registered ones by more
-  // than half their size and by more than 0.02 rad/s.
+  // than half their size and by more than 0.02 rad/s, and its axes turned by more than 20 deg
+  // would fit them with half that rms.
   bool disagrees() const;
+  // The rotation that best turns the gyro's mean rates (at no shift) onto the registered ones.
+  Eigen::Matrix3d best_rotation() const;
   // Samples older than t are no longer needed.
   void forget_before(double t);
 
@@ -61,6 +64,7 @@ class GyroTrack {
   static constexpr double kShiftStep = 1e-3;
   std::array<double, 2 * kShiftSteps + 1> shift_sse_{};
   double rate_sse_ = 0.0;
+  Eigen::Matrix3d registered_gyro_ = Eigen::Matrix3d::Zero();  // sum of registered * gyro^T at no shift
   size_t shift_windows_ = 0;
 
   Eigen::Matrix3d R_lidar_imu_;

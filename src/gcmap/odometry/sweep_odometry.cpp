@@ -242,6 +242,9 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
     if (gyro) m.gyro_correction = gyro_correction(T_world_mean, stamp + t_mean), m.weigh_gyro(gyro_noise_);
     T = T_world_mean * m.T_stamp(t_mean).inverse();
   }
+  // The gyro's rotations compose with the last pose's; through a run of failures nothing registered
+  // re-orthonormalizes them.
+  if (gyro) T = normalized(T);
   *cloud = raw;
   m.deskew(*cloud);
   e.deskew_shift = mean_shift(raw, *cloud);

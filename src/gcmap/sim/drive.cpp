@@ -12,7 +12,8 @@ constexpr double kAccel = 1.5, kDecel = 2.5;  // m/s^2
 constexpr int kChord = 20;                    // samples (1 m) for headings and curvature
 }  // namespace
 
-Drive::Drive(const Scenario& s, const World& world, uint64_t seed) : world_(world) {
+Drive::Drive(const Scenario& s, const World& world, uint64_t seed)
+    : world_(world), sensor_height_(s.sensor_height), handheld_(s.handheld), seed_(seed) {
   std::vector<size_t> corner_starts;
   lane_ = shifted_right(route_centerline(s, &corner_starts), s.lane_offset);
   arc_.assign(lane_.size(), 0.0);
@@ -97,8 +98,33 @@ Eigen::Isometry3d Drive::pose(double frame) const {
   T.linear().col(0) = x;
   T.linear().col(1) = z.cross(x);
   T.linear().col(2) = z;
-  T.translation() = Eigen::Vector3d(p.x(), p.y(), world_.ground_height(p.x(), p.y()) + 1.73);
-  return T;
+  T.translation() = Eigen::Vector3d(p.x(), p.y(), world_.ground_height(p.x(), p.y()) + sensor_height_);
+  return handheld_ ? T * gait(frame * kFramePeriod) : T;
+}
+
+namespace {
+constexpr double kStepHz = 1.8;      // steps per second
+constexpr double kGlanceEvery = 7.0;  // s between glances
+constexpr double kGlance = 1.0;       // s a glance takes, there and back
+constexpr double kGlanceDeg = 60.0;   // how far aside: a raised cosine peaks at pi * 60 / 1.0 = 188 deg/s
+}  // namespace
+
+Eigen::Isometry3d Drive::gait(double t) const {
+  // Walking speed over half a second: standing still, the hand barely moves.
+  const double v = (arclength((t + 0.25) / kFramePeriod) - arclength((t - 0.25) / kFramePeriod)) / 0.5;
+  const double walk = std::clamp(v / 1.2, 0.0, 1.0), step = 2.0 * M_PI * kStepHz * t;
+  // A glance in each kGlanceEvery window, to a side drawn from the seed.
+  const double k = std::floor(t / kGlanceEvery), u = (t - k * kGlanceEvery - 0.5 * kGlanceEvery) / kGlance;
+  const double side = Rng(hash_key(seed_, 0x61A, static_cast<uint64_t>(k))).uniform() < 0.5 ? -1.0 : 1.0;
+  const double glance = (u >= 0.0 && u <= 1.0) ? side * kGlanceDeg * 0.5 * (1.0 - std::cos(2.0 * M_PI * u)) : 0.0;
+  constexpr double kDeg = M_PI / 180.0;
+  Eigen::Isometry3d G = Eigen::Isometry3d::Identity();
+  G.translation() << 0.0, walk * 0.02 * std::sin(0.5 * step), walk * 0.025 * std::cos(step);
+  G.linear() = (Eigen::AngleAxisd((glance + walk * 3.0 * std::sin(0.5 * step + 0.3)) * kDeg, Eigen::Vector3d::UnitZ()) *
+                Eigen::AngleAxisd(walk * 1.5 * std::sin(step + 0.5) * kDeg, Eigen::Vector3d::UnitY()) *
+                Eigen::AngleAxisd(walk * 2.0 * std::sin(0.5 * step) * kDeg, Eigen::Vector3d::UnitX()))
+                   .toRotationMatrix();
+  return G;
 }
 
 }  // namespace gcmap::sim

@@ -108,8 +108,22 @@ Scenario make_scenario(const std::string& name, int frames, int route) {
     s.description =
         "a 0.9 km hilly forest trail loop with hikers and cyclists: trees, bushes, rocks, "
         "partial returns through canopies";
+  } else if (name == "handheld") {
+    // A person walking the inner sidewalk of a block loop (all left turns, down to 0.7 m radius),
+    // waiting at every second crossing, with a handheld sensor that bounces, sways and glances
+    // aside; sloped streets.
+    s.block = 40.f;
+    add_waypoints(s, {{0, 0}, {1, 0}, {1, 1}, {0, 1}, {0, 0}, {0.5f, 0}});
+    s.realistic = true;
+    s.corner_radius = 13.f, s.lane_offset = -8.5f;  // the inner curve: 0.7 m at its tightest
+    s.cruise_min = 1.0f, s.cruise_max = 1.5f, s.lateral_accel = 3.f, s.stop_every = 2;
+    s.sensor_height = 1.5f, s.handheld = true;
+    s.terrain = Terrain{3.f, 60.f, 2.f, 45.f, kRoad, 0.1f, 160};
+    s.description =
+        "a 120 m walk around a block on its sidewalk, 1-1.5 m/s with waits at crossings, the sensor in hand: gait "
+        "bounce and sway, glances aside at up to 190 deg/s, tight corners, sloped streets";
   } else {
-    throw Error("--scenario: expected loop, small, corridor, tunnel, city, highway or forest, got '" + name + "'");
+    throw Error("--scenario: expected loop, small, corridor, tunnel, city, highway, forest or handheld, got '" + name + "'");
   }
   if (route < 0 || route >= num_routes(name))
     throw Error("--route: the '" + name + "' scenario has routes 0 to " + std::to_string(num_routes(name) - 1) + ", got " +

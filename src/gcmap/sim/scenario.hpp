@@ -29,10 +29,13 @@ struct Scenario {
   float cruise_min = 0.f, cruise_max = 0.f, lateral_accel = 2.5f;
   int stop_every = 0;
   bool rest_at_ends = true;  // starts from and ends in a stop
+  float sensor_height = 1.73f;  // m above the ground
+  bool handheld = false;        // a walking person's gait and glances on top of the route (Drive::pose)
   Terrain terrain;
   std::string description;
 };
-// loop, small, corridor, tunnel (evenly spaced frames, no realism by default), city, highway, forest.
+// loop, small, corridor, tunnel (evenly spaced frames, no realism by default), city, highway, forest,
+// handheld.
 // `frames` > 0 overrides the frame count (for realistic scenarios: the first `frames` frames).
 // `route` > 0 drives another route through the same world (city, small and loop have more than one),
 // starting elsewhere and overlapping route 0 in part.
@@ -60,9 +63,15 @@ class Drive {
 
  private:
   double arclength(double frame) const;
+  // The handheld sensor's motion relative to the walked route at time t: gait bounce and sway,
+  // and glances aside (a fast turn of the device there and back).
+  Eigen::Isometry3d gait(double t) const;
   void speed_profile(const Scenario& s, const std::vector<size_t>& corner_starts, uint64_t seed);
 
   const World& world_;
+  float sensor_height_;
+  bool handheld_;
+  uint64_t seed_;
   std::vector<Eigen::Vector2f> lane_;
   std::vector<double> arc_;
   double length_ = 0.0;

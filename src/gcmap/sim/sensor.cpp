@@ -13,6 +13,8 @@ constexpr double kDeg = M_PI / 180.0;
 // counter-rotating vectors, which draws petals that precess from sweep to sweep.
 constexpr double kPrismHz1 = 73.13, kPrismHz2 = 51.71;
 constexpr double kHalfFovH = 35.2 * kDeg, kHalfFovV = 38.6 * kDeg;
+// Mid-360: the elevation's two oscillations (Hz).
+constexpr double kMidHz1 = 173.3, kMidHz2 = 61.7;
 }  // namespace
 
 Eigen::Vector3f SensorModel::direction(int group, int ray, double sweep_start, float elevation_bias) const {
@@ -20,6 +22,16 @@ Eigen::Vector3f SensorModel::direction(int group, int ray, double sweep_start, f
     const float az = 2.f * static_cast<float>(M_PI) * group / azimuth_steps;
     const float el = elevations_deg[ray] * static_cast<float>(M_PI) / 180.f + elevation_bias;
     return {std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el)};
+  }
+  if (pattern == ScanPattern::mid360) {
+    // Four lasers a quarter turn apart, one turn per sweep; the elevation follows two
+    // incommensurate oscillations, so successive sweeps fill the field of view differently.
+    const double t = sweep_start + period * static_cast<double>(group) / rosette_firings;
+    const double az = 2.0 * M_PI * (static_cast<double>(group) / rosette_firings + 0.25 * ray);
+    const double w = 0.5 + 0.5 * (0.55 * std::sin(2.0 * M_PI * kMidHz1 * t + 1.3 * ray) +
+                                  0.45 * std::sin(2.0 * M_PI * kMidHz2 * t + 2.1 * ray));
+    const double el = (-7.0 + 59.0 * w) * kDeg + elevation_bias;
+    return Eigen::Vector3d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el)).cast<float>();
   }
   // The six lasers sit side by side and fire together, each a little ahead in the pattern.
   const double t = sweep_start + period * static_cast<double>(group) / rosette_firings + ray * 2.1e-4;
@@ -51,8 +63,14 @@ SensorModel sensor_model(const std::string& name) {
     s.pattern = ScanPattern::rosette;  // 240,000 points/s: 6 lasers x 40 kHz
     s.min_range = 1.0f;
     s.max_range = 190.0f;
+  } else if (name == "mid360") {
+    s.pattern = ScanPattern::mid360;  // 200,000 points/s: 4 lasers x 50 kHz
+    s.rosette_firings = 5000;
+    s.rosette_lasers = 4;
+    s.min_range = 0.1f;
+    s.max_range = 70.0f;
   } else {
-    throw Error("--sensor: expected hdl64, vlp16, os1-64, os1-128 or avia, got '" + name + "'");
+    throw Error("--sensor: expected hdl64, vlp16, os1-64, os1-128, avia or mid360, got '" + name + "'");
   }
   return s;
 }

@@ -1,7 +1,9 @@
 #pragma once
 // LiDAR models: spinning multi-beam sensors (a column of beams fired at once, columns swept over
-// 360 degrees) and a Livox-Avia-like solid-state sensor (six lasers steered by a pair of rotating
-// prisms along a rosette that never repeats and fills the field of view over time).
+// 360 degrees), a Livox-Avia-like solid-state sensor (six lasers steered by a pair of rotating
+// prisms along a rosette that never repeats and fills the field of view over time) and a
+// Livox-Mid-360-like one (four lasers swept around 360 degrees of azimuth while their elevation
+// wanders over -7 to +52 degrees along a pattern that never repeats).
 #include <Eigen/Core>
 #include <cstdint>
 #include <string>
@@ -9,7 +11,7 @@
 
 namespace gcmap::sim {
 
-enum class ScanPattern { spinning, rosette };
+enum class ScanPattern { spinning, rosette, mid360 };
 
 struct SensorModel {
   std::string name;
@@ -28,12 +30,13 @@ struct SensorModel {
   int rays_per_group() const {
     return pattern == ScanPattern::spinning ? static_cast<int>(elevations_deg.size()) : rosette_lasers;
   }
+  bool non_repetitive() const { return pattern != ScanPattern::spinning; }
   // Unit direction in the sensor frame of ray `ray` of group `group`; `sweep_start` is the absolute
   // time of the sweep (the rosette continues across sweeps); `elevation_bias` in radians.
   Eigen::Vector3f direction(int group, int ray, double sweep_start, float elevation_bias = 0.f) const;
 };
 
-// hdl64, vlp16, os1-64, os1-128, avia. Throws Error naming --sensor otherwise.
+// hdl64, vlp16, os1-64, os1-128, avia, mid360. Throws Error naming --sensor otherwise.
 SensorModel sensor_model(const std::string& name);
 
 // A factory calibration that is slightly off: per beam a fixed elevation bias (0.1 to 0.2 deg,
