@@ -7,6 +7,8 @@ namespace gcmap {
 namespace {
 // The error of an odometry position relative to another a few seconds away (m).
 constexpr double kPositionSigma = 0.01;
+// s: each half of a window at least this long; shorter, position errors swamp gravity.
+constexpr double kMinInterval = 0.2;
 
 bool covers(const std::vector<ImuSample>& samples, double t0, double t1) {
   return !samples.empty() && samples.front().stamp <= t0 && samples.back().stamp >= t1;
@@ -45,6 +47,7 @@ std::optional<GravityWindow> gravity_window(const std::vector<ImuSample>& sample
   const Eigen::Vector3d t_lidar_imu = imu.T_lidar_imu().translation();
   const auto p = [&](size_t k) { return Eigen::Vector3d(frames[k].T_odom_lidar * t_lidar_imu); };
   const double T1 = frames[m].stamp - frames[a].stamp, T2 = frames[b].stamp - frames[m].stamp;
+  if (!(T1 >= kMinInterval && T2 >= kMinInterval)) return std::nullopt;  // repeated stamps, or too short to tell
   const ForceIntegral am = integrate_force(samples, frames, a, m, imu), mb = integrate_force(samples, frames, m, b, imu);
   const Eigen::Vector3d c = (p(b) - p(m)) / T2 - (p(m) - p(a)) / T1 + am.P / T1 - am.V - mb.P / T2;
   const Eigen::Matrix3d M = -(am.dP / T1 - am.dV - mb.dP / T2);
