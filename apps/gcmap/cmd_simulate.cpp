@@ -162,10 +162,9 @@ void add_simulate(CLI::App& app, Runner& run) {
                   "Which route through the seed's world: city and small have 0-2, loop 0-1 (noise and traffic differ per "
                   "route; poses_world.txt gives the poses in the shared world frame)")
       ->capture_default_str();
-  auto* sensor_opt = cmd->add_option("--sensor", opt->sensor,
-                                     "hdl64, vlp16, os1-64, os1-128, avia (Livox-Avia-like rosette) or mid360 (Livox-Mid-360-like, "
-                                     "360 x 59 deg, non-repetitive; the default of --scenario handheld)")
-                         ->capture_default_str();
+  cmd->add_option("--sensor", opt->sensor,
+                  "hdl64, vlp16, os1-64, os1-128, avia (Livox-Avia-like rosette) or mid360 (Livox-Mid-360-like, 360 x 59 deg, "
+                  "non-repetitive); default: mid360 for --scenario handheld, hdl64 otherwise");
   cmd->add_option("--noise", opt->noise, "Range noise sigma in m")->capture_default_str();
   cmd->add_flag("--ideal", *ideal, "No realism: scans at one instant, static world, Gaussian range noise only");
   cmd->add_option("--realism", *realism,
@@ -178,7 +177,6 @@ void add_simulate(CLI::App& app, Runner& run) {
   cmd->callback([=, &run] {
     run = [=] {
       if (*ideal && !realism->empty()) throw Error("--ideal and --realism: give one of them");
-      if (!sensor_opt->count() && opt->scenario == "handheld") opt->sensor = "mid360";
       if (*ideal) opt->realism = sim::RealismConfig::none();
       if (!realism->empty()) opt->realism = sim::parse_realism(*realism);
       sim::OutputOptions output;

@@ -61,13 +61,14 @@ access (deterministic for seed and frame), with the GIL released.)")
         py::gil_scoped_release release;
         return std::make_unique<sim::Simulator>(c);
       },
-      py::arg("scenario") = "small", py::arg("seed") = 1, py::kw_only(), py::arg("frames") = 0, py::arg("sensor") = "hdl64",
+      py::arg("scenario") = "small", py::arg("seed") = 1, py::kw_only(), py::arg("frames") = 0, py::arg("sensor") = "",
       py::arg("noise") = 0.02,
       R"(A Simulation: iterate it for (points, gt_pose) frames.
 
 scenario: "small" (one 160 m block, 150 frames), "loop" (1.55 km, 1500 frames) or "corridor"
 (500 m of flat facades). frames: how many frames along the whole drive (0: the scenario's).
-sensor: "hdl64", "vlp16" or "os1-64". noise: range noise sigma in m.)");
+sensor: "hdl64", "vlp16", "os1-64", "os1-128", "avia" or "mid360" (empty: the scenario's, hdl64 but for
+"handheld"). noise: range noise sigma in m.)");
 }
 
 }  // namespace

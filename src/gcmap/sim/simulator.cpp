@@ -61,6 +61,8 @@ Traffic build_traffic(const Scenario& s, uint64_t seed, const std::vector<Eigen:
 
 }  // namespace
 
+std::string default_sensor(const std::string& scenario) { return scenario == "handheld" ? "mid360" : "hdl64"; }
+
 bool RealismConfig::any() const {
   for (const auto& k : kRealismKeys)
     if (this->*k.flag) return true;
@@ -101,7 +103,7 @@ Simulator::Simulator(const SimulationConfig& config)
       realism_(config.realism        ? *config.realism
                : scenario_.realistic ? RealismConfig::all()
                                      : RealismConfig::none()),
-      sensor_(sensor_model(config.sensor)),
+      sensor_(sensor_model(config.sensor.empty() ? default_sensor(config.scenario) : config.sensor)),
       calibration_(make_calibration(sensor_, config.seed)) {
   if (!(config.noise >= 0.0) || config.noise > 1.0) throw Error("--noise: must be in [0, 1] m");
   const std::vector<Eigen::Vector2f> centerline = route_centerline(scenario_);

@@ -42,7 +42,7 @@ struct SimulationConfig {
   // Which of the scenario's routes through the world of `seed` (see make_scenario): the noise,
   // the speed profile and the moving objects differ per route, the static world does not.
   int route = 0;
-  std::string sensor = "hdl64";
+  std::string sensor;  // empty: the scenario's (default_sensor)
   double noise = 0.02;  // range noise sigma in m (at about 20 m with range_noise)
   // Unset: the scenario's default (everything for city, highway and forest; nothing for loop,
   // small and corridor, whose output stays as it always was).
@@ -50,6 +50,8 @@ struct SimulationConfig {
 };
 
 Scenario make_scenario(const SimulationConfig& config);
+// The sensor a scenario is simulated with unless told: mid360 for handheld, hdl64 otherwise.
+std::string default_sensor(const std::string& scenario);
 
 class Simulator {
  public:

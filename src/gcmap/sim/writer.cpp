@@ -274,7 +274,7 @@ void write_metadata(const fs::path& dir, const Simulator& sim, const SimulationC
   j["description"] = sim.scenario().description;
   j["frames"] = sim.num_frames();
   j["seed"] = static_cast<unsigned long>(config.seed);
-  j["sensor"] = config.sensor;
+  j["sensor"] = sim.sensor().name;
   j["range_noise_sigma"] = config.noise;
   j["path_length_m"] = sim.path_length();
   j["rate_hz"] = 10.0;
