@@ -131,8 +131,8 @@ FactorGraph GlobalMapper::graph() const {
 }
 
 namespace {
-// How far a window's up may stray (in its sigmas) before it counts less: an odometry failure
-// inside a window puts its velocities, and so its gravity, wrong.
+// How far a window's gravity may stray (in its sigmas) before it counts less: an odometry failure
+// inside a window puts its positions, and so its gravity, wrong.
 constexpr double kGravityHuber = 3.0;
 // The prior on the accelerometer's bias (m/s^2): a MEMS IMU after its factory calibration.
 constexpr double kAccelBiasPrior = 0.1;
