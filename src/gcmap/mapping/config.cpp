@@ -157,8 +157,9 @@ void visit_odometry_local(Config& c, Visitor& v) {
            "After a gap between stamps longer than this, no motion is predicted: the guess is standing still."});
   v("odometry", "retry_distance", c.odometry.retry_distance,
     KeyDoc{"m", 0.01, 100, "odometry/",
-           "A registration that matches too few points (retry_inlier_fraction) and lands farther than this from the prediction "
-           "is retried from zero motion on coarser voxels; if it still does, the frame is placed by the prediction."});
+           "A registration that matches too few points (retry_inlier_fraction) and lands farther than this from the prediction, "
+           "or matches under half of what the last frames matched, is retried from zero motion on coarser voxels (2 m, or "
+           "twice voxel_resolution); if it still does, the frame is placed by the prediction."});
   v("odometry", "retry_inlier_fraction", c.odometry.retry_inlier_fraction,
     KeyDoc{"-", 0, 1, "odometry/",
            "Fraction of a scan's points a registration must match to be trusted without a retry; good matches on clean data "

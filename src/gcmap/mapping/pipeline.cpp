@@ -153,10 +153,7 @@ MappingPipeline::Tracked MappingPipeline::track_frame(PreparedScan scan, std::op
   frame_figures_.push_back({e.quality, e.deskew_shift, scan.cloud != nullptr});
   if (e.revised) odometry_poses_[e.revised->frame] = e.revised->T_world_frame;
   if (f.odometry_failed) {
-    spdlog::warn(
-        "scan {}: odometry failed (too few matches, or far from the prediction with little overlap), "
-        "placed by the prediction",
-        f.index);
+    spdlog::warn("scan {}: odometry failed ({}), placed by the prediction", f.index, to_string(e.quality.failure));
     ++odometry_failures_;
   }
   if (e.lost)

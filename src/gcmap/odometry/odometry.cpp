@@ -1,6 +1,7 @@
 #include "gcmap/odometry/odometry.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include <Eigen/Eigenvalues>
@@ -18,6 +19,14 @@ namespace {
 constexpr double kEqualIntervals = 1e-4;
 constexpr double kSteadyRatio = 1.5;
 constexpr int kMaxFailedStreak = 3;
+// Retries search on voxels at least this large (m): the basin must span the prediction's error, a
+// length of the motion, not of the registration's voxels.
+constexpr double kRetryVoxel = 2.0;
+// A registration matching under this share of what the recent ones matched sees another place (a
+// jump in the recording) or a wrong minimum: how many points fall into model voxels depends on the
+// voxel size and the sensor, their sudden drop does not.
+constexpr double kCollapsedInliers = 0.5;
+constexpr size_t kRecentRegistrations = 10;
 
 RegistrationQuality registration_quality(const RegistrationResult& r, size_t points) {
   RegistrationQuality q;
@@ -41,6 +50,7 @@ const char* to_string(OdometryFailure f) {
     case OdometryFailure::no_matches: return "hardly any point matched the local model";
     case OdometryFailure::stops_short: return "the registration stopped short of the constant-velocity prediction";
     case OdometryFailure::far_with_low_overlap: return "few points matched and the result lay far from the prediction";
+    case OdometryFailure::overlap_collapsed: return "far fewer points matched than in the frames before";
   }
   return "";
 }
@@ -108,7 +118,7 @@ Eigen::Isometry3d Odometry::track(const std::shared_ptr<const PointCloud>& frame
     return last_;
   }
   const Eigen::Isometry3d T = estimate(*frame, predict(stamp), guess_kind(stamp), &last_failed_, &last_quality_);
-  accept(frame, T, stamp, last_failed_);
+  accept(frame, T, stamp, last_failed_, last_quality_);
   return last_;
 }
 
@@ -121,6 +131,15 @@ Odometry::Guess Odometry::guess_kind(std::optional<double> stamp) const {
   if (dt_last < kEqualIntervals || dt_now > config_.max_gap) return Guess::rest;
   // Driver jitter leaves the prediction as good as at equal intervals; a dropped message does not.
   return dt_now < kSteadyRatio * dt_last && dt_last < kSteadyRatio * dt_now ? Guess::steady : Guess::scaled;
+}
+
+double Odometry::typical_inlier_fraction() const {
+  if (inlier_fractions_.empty()) return 0.0;
+  std::array<double, kRecentRegistrations> v;
+  const auto end = std::copy(inlier_fractions_.begin(), inlier_fractions_.end(), v.begin());
+  const auto mid = v.begin() + (end - v.begin()) / 2;
+  std::nth_element(v.begin(), mid, end);
+  return *mid;
 }
 
 std::shared_ptr<const GaussianVoxelMap> Odometry::model_at(double resolution) const {
@@ -147,16 +166,21 @@ Eigen::Isometry3d Odometry::estimate(const PointCloud& frame, const Eigen::Isome
     return r.num_inliers <= 50 ? guess : r.T_target_source;
   }
   const double min_inliers = config_.retry_inlier_fraction * frame.size();
+  const double collapsed_inliers = kCollapsedInliers * typical_inlier_fraction() * frame.size();
+  const double retry_resolution = std::max(2.0 * config_.voxel_resolution, kRetryVoxel);
   RegistrationResult r = backend_->align(frame, model_, guess, reg);
   const auto far = [&](const RegistrationResult& x) {
     return (guess.inverse() * x.T_target_source).translation().norm() > config_.retry_distance;
   };
+  const auto doubtful = [&](const RegistrationResult& x) {
+    return x.num_inliers < min_inliers && (far(x) || x.num_inliers < collapsed_inliers);
+  };
   // Low overlap near a steady guess is no reason for doubt: on a fast straight road the model's
-  // ground rings cover little of the scan.
-  if (r.num_inliers < min_inliers && (kind == Guess::scaled || far(r))) {
+  // ground rings cover little of the scan. A sudden drop against the frames before is.
+  if (kind == Guess::scaled ? r.num_inliers < min_inliers : doubtful(r)) {
     // A wrong prediction (a gap, a turn) may have led into a local minimum. Retry from zero
-    // motion and, with twice the voxel size (a wider basin), from both guesses.
-    const auto coarse = model_at(2.0 * config_.voxel_resolution);
+    // motion and, on coarser voxels (a wider basin), from both guesses.
+    const auto coarse = model_at(retry_resolution);
     for (int k = 0; k < 3; ++k) {
       const Eigen::Isometry3d from = k == 0 ? last_ : backend_->align(frame, coarse, k == 1 ? guess : last_, reg).T_target_source;
       const RegistrationResult retry = backend_->align(frame, model_, from, reg);
@@ -176,24 +200,29 @@ Eigen::Isometry3d Odometry::estimate(const PointCloud& frame, const Eigen::Isome
   };
   const bool implausible = kind == Guess::steady && stops_short(r);
   if (implausible) {
-    const auto coarse = model_at(2.0 * config_.voxel_resolution);
+    const auto coarse = model_at(retry_resolution);
     r = backend_->align(frame, model_, backend_->align(frame, coarse, guess, reg).T_target_source, reg);
   }
-  const bool bad = r.num_inliers <= 50 || (implausible && stops_short(r)) || (r.num_inliers < min_inliers && far(r));
+  const bool bad = r.num_inliers <= 50 || (implausible && stops_short(r)) || doubtful(r);
   if (failed) *failed = bad;
   if (quality) {
     *quality = registration_quality(r, frame.size());
     if (bad)
       quality->failure = r.num_inliers <= 50             ? OdometryFailure::no_matches
                          : implausible && stops_short(r) ? OdometryFailure::stops_short
-                                                         : OdometryFailure::far_with_low_overlap;
+                         : far(r)                        ? OdometryFailure::far_with_low_overlap
+                                                         : OdometryFailure::overlap_collapsed;
   }
   return bad ? guess : r.T_target_source;
 }
 
 void Odometry::accept(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T, std::optional<double> stamp,
-                      bool failed) {
+                      bool failed, const RegistrationQuality& quality) {
   failed_streak_ = failed ? failed_streak_ + 1 : 0;
+  if (quality.registered && !failed) {
+    inlier_fractions_.push_back(quality.inlier_fraction);
+    if (inlier_fractions_.size() > kRecentRegistrations) inlier_fractions_.pop_front();
+  }
   if (!model_) {
     set_pose(T, stamp);
     add_keyframe(frame, T);
@@ -207,6 +236,7 @@ void Odometry::accept(const std::shared_ptr<const PointCloud>& frame, const Eige
   if (failed_streak_ >= kMaxFailedStreak) {
     keyframes_.clear();
     model_.reset();
+    inlier_fractions_.clear();
     return;
   }
   const Eigen::Isometry3d delta = keyframes_.back().first.inverse() * T;

@@ -32,7 +32,7 @@ struct OdometryConfig {
 };
 
 // Why a frame was placed by the prediction instead of its registration (see Odometry::estimate).
-enum class OdometryFailure { none, no_matches, stops_short, far_with_low_overlap };
+enum class OdometryFailure { none, no_matches, stops_short, far_with_low_overlap, overlap_collapsed };
 const char* to_string(OdometryFailure f);
 
 // What a frame's accepted scan-to-model registration says about itself, from the Hessian the
@@ -84,8 +84,9 @@ class Odometry {
   // quality, when given, receives the figures of the registration returned (or why it failed).
   Eigen::Isometry3d estimate(const PointCloud& frame, const Eigen::Isometry3d& guess, Guess kind, bool* failed = nullptr,
                              RegistrationQuality* quality = nullptr) const;
+  // quality: of the registration that placed the frame (its inlier fraction joins the recent ones).
   void accept(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T,
-              std::optional<double> stamp = std::nullopt, bool failed = false);
+              std::optional<double> stamp = std::nullopt, bool failed = false, const RegistrationQuality& quality = {});
   bool has_model() const { return model_ != nullptr; }
   bool last_failed() const { return last_failed_; }
   const RegistrationQuality& last_quality() const { return last_quality_; }  // of track()'s last frame
@@ -102,6 +103,9 @@ class Odometry {
  private:
   void add_keyframe(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T);
   std::shared_ptr<const GaussianVoxelMap> model_at(double resolution) const;  // the keyframes on other voxels
+  // Inlier fraction of the recent accepted registrations against the current model (median), 0
+  // while none is known.
+  double typical_inlier_fraction() const;
 
   OdometryConfig config_;
   std::shared_ptr<LinearizationBackend> backend_;
@@ -109,6 +113,7 @@ class Odometry {
   bool last_failed_ = false;
   RegistrationQuality last_quality_;
   int failed_streak_ = 0;  // frames placed by the prediction in a row
+  std::deque<double> inlier_fractions_;  // of the last accepted registrations, oldest first
   Eigen::Isometry3d last_ = Eigen::Isometry3d::Identity(), previous_ = Eigen::Isometry3d::Identity();
   std::optional<double> last_stamp_, previous_stamp_;
   std::deque<std::pair<Eigen::Isometry3d, std::shared_ptr<const PointCloud>>> keyframes_;

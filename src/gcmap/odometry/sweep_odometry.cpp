@@ -248,7 +248,7 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
   *cloud = raw;
   m.deskew(*cloud);
   e.deskew_shift = mean_shift(raw, *cloud);
-  odometry_.accept(cloud, T, stamp, e.failed);
+  odometry_.accept(cloud, T, stamp, e.failed, e.quality);
   reference_ = {T * m.T_stamp(t_mean), stamp + t_mean};
   if (e.failed) {  // placed by the prediction: no velocity measured
     previous_mean_.reset(), before_previous_.reset(), previous_.reset();
