@@ -27,5 +27,5 @@ cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g1" 
 cmake --build "$dir" -j "$(nproc)" --target gcmap_cli gcmap_tests gcmap_e2e_tests
 # Left out: the end-to-end scenarios and real-data runs that take 30 s to 10+ min under ASan on 2
 # loaded cores (their code paths are covered by the smaller tests; the normal build runs them).
-slow='^(SmallScenario\.|SmallDrive\.|PriorMapOfSmallBlock\.|RealisticRoutes\.|RealisticMerge\.|SessionRoundTrip\.|BagCli\.Map|BagSim\.|LoopScenario\.(ExplicitLoop|Retrieval|MapperBridges)|MapEntropy\.Thinner|Mapping\.Kitti00|Kitti07\.|DeskewDrive\.|OdometryTiming\.|MergeOfSmallRoutes\.|MergeCommand\.|SimulatedDriveExport\.|GlobalTilt\.|ElevationCalibration\.SelfCalibration|InputAssumptionsE2E\.MapEstimates|GnssDrive\.|Quality\.|SmallDriveWithIntensity\.)'
+slow='^(SmallScenario\.|SmallDrive\.|PriorMapOfSmallBlock\.|RealisticRoutes\.|RealisticMerge\.|SessionRoundTrip\.|BagCli\.Map|BagSim\.|LoopScenario\.(ExplicitLoop|Retrieval|MapperBridges)|MapEntropy\.Thinner|Mapping\.Kitti00|Kitti07\.|DeskewDrive\.|OdometryTiming\.|Voxels/OdometryChecks\.|MergeOfSmallRoutes\.|MergeCommand\.|SimulatedDriveExport\.|GlobalTilt\.|ElevationCalibration\.SelfCalibration|InputAssumptionsE2E\.MapEstimates|GnssDrive\.|Quality\.|SmallDriveWithIntensity\.)'
 ctest --test-dir "$dir" --output-on-failure -j "$(nproc)" -E "$slow" "$@"

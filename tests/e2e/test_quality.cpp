@@ -49,7 +49,14 @@ std::vector<double> frame_to_frame_errors(const MappedDrive& d) {
 TEST(Quality, DegenerateFramesAreThoseWhoseTrueErrorGrowsInATunnel) {
   const MappedDrive d = map_drive("tunnel", 150);
   const std::vector<double> error = frame_to_frame_errors(d);
-  constexpr double kBad = 0.005;  // m per frame: 4x the typical error outside the canyon
+  // A frame is bad at 4x the typical (median) error outside the canyon, whatever the odometry's
+  // accuracy there.
+  std::vector<double> outside;
+  for (size_t i = 1; i < error.size(); ++i)
+    if (d.truth[i].translation().x() < 50.0) outside.push_back(error[i]);
+  ASSERT_GE(outside.size(), 20u);
+  std::nth_element(outside.begin(), outside.begin() + outside.size() / 2, outside.end());
+  const double bad_error = 4.0 * outside[outside.size() / 2];
   int flagged = 0, bad = 0, both = 0;
   double flagged_sum = 0.0, other_sum = 0.0;
   for (const FrameQualityRecord& f : d.report.frames) {
@@ -57,14 +64,16 @@ TEST(Quality, DegenerateFramesAreThoseWhoseTrueErrorGrowsInATunnel) {
     const double x = d.truth[f.index].translation().x();
     if (f.degenerate) EXPECT_GT(x, 50.0) << "frame " << f.index << " flagged outside the canyon (50-190 m)";
     if (f.degenerate) EXPECT_EQ(f.weak_axis, WeakAxis::along_travel) << "frame " << f.index;
-    flagged += f.degenerate, bad += error[f.index] > kBad, both += f.degenerate && error[f.index] > kBad;
+    flagged += f.degenerate, bad += error[f.index] > bad_error, both += f.degenerate && error[f.index] > bad_error;
     (f.degenerate ? flagged_sum : other_sum) += error[f.index];
   }
+  std::printf("typical error outside %.4f m; %d flagged, %d over %.4f m, %d both\n", bad_error / 4.0, flagged, bad, bad_error,
+              both);
   ASSERT_GE(flagged, 20);
   ASSERT_GE(bad, 10);
   const double precision = static_cast<double>(both) / flagged, recall = static_cast<double>(both) / bad;
-  EXPECT_GE(recall, 0.9) << both << " of " << bad << " frames over " << kBad << " m flagged";
-  EXPECT_GE(precision, 0.4) << both << " of " << flagged << " flagged frames over " << kBad << " m";
+  EXPECT_GE(recall, 0.9) << both << " of " << bad << " frames over " << bad_error << " m flagged";
+  EXPECT_GE(precision, 0.4) << both << " of " << flagged << " flagged frames over " << bad_error << " m";
   EXPECT_GT(flagged_sum / flagged, 3.0 * other_sum / (d.report.frames.size() - 1 - flagged));
   ASSERT_FALSE(d.report.verdict.empty());
   EXPECT_NE(d.report.verdict[0].find("degenerate (weak along the direction of travel)"), std::string::npos)

@@ -27,6 +27,8 @@ constexpr double kRetryVoxel = 2.0;
 // voxel size and the sensor, their sudden drop does not.
 constexpr double kCollapsedInliers = 0.5;
 constexpr size_t kRecentRegistrations = 10;
+// A model's first registrations (after a start or a gap) vary too much to be typical.
+constexpr size_t kMinRecentRegistrations = 5;
 
 RegistrationQuality registration_quality(const RegistrationResult& r, size_t points) {
   RegistrationQuality q;
@@ -134,7 +136,7 @@ Odometry::Guess Odometry::guess_kind(std::optional<double> stamp) const {
 }
 
 double Odometry::typical_inlier_fraction() const {
-  if (inlier_fractions_.empty()) return 0.0;
+  if (inlier_fractions_.size() < kMinRecentRegistrations) return 0.0;
   std::array<double, kRecentRegistrations> v;
   const auto end = std::copy(inlier_fractions_.begin(), inlier_fractions_.end(), v.begin());
   const auto mid = v.begin() + (end - v.begin()) / 2;

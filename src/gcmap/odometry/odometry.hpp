@@ -104,7 +104,7 @@ class Odometry {
   void add_keyframe(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T);
   std::shared_ptr<const GaussianVoxelMap> model_at(double resolution) const;  // the keyframes on other voxels
   // Inlier fraction of the recent accepted registrations against the current model (median), 0
-  // while none is known.
+  // while too few are known.
   double typical_inlier_fraction() const;
 
   OdometryConfig config_;
@@ -112,7 +112,7 @@ class Odometry {
   int frames_ = 0;
   bool last_failed_ = false;
   RegistrationQuality last_quality_;
-  int failed_streak_ = 0;  // frames placed by the prediction in a row
+  int failed_streak_ = 0;                // frames placed by the prediction in a row
   std::deque<double> inlier_fractions_;  // of the last accepted registrations, oldest first
   Eigen::Isometry3d last_ = Eigen::Isometry3d::Identity(), previous_ = Eigen::Isometry3d::Identity();
   std::optional<double> last_stamp_, previous_stamp_;
