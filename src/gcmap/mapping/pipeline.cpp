@@ -144,10 +144,9 @@ MappingPipeline::Tracked MappingPipeline::track_frame(PreparedScan scan, std::op
   f.deskew_shift = e.deskew_shift;
   gyro_deskewed_ += e.gyro ? 1 : 0;
   if (!gyro_warned_ && odometry_.gyro_rejected_at()) {
-    spdlog::warn(
-        "scan {}: the gyro's rates do not follow the LiDAR's registered rotation: the IMU is no longer used "
-        "(check imu.roll_deg, pitch_deg and yaw_deg)",
-        f.index);
+    spdlog::warn("scan {}: the gyro's rates do not follow the LiDAR's registered rotation: the IMU is no longer used "
+                 "(check imu.roll_deg, pitch_deg and yaw_deg)",
+                 f.index);
     gyro_warned_ = true;
     t.imu_rejected = true;
   }

@@ -21,7 +21,8 @@ struct OdometryConfig {
   double max_gap = 2.0;  // s
   // A registration matching fewer than retry_inlier_fraction of the points is retried (zero
   // motion, coarser voxels); if it still does and lands over retry_distance m from the prediction,
-  // the frame is placed by the prediction.
+  // or matches under half of what the recent registrations matched, the frame is placed by the
+  // prediction.
   double retry_distance = 1.0;
   double retry_inlier_fraction = 0.7;
   // Before any motion is known (the second frame, or after a gap of max_gap) the guess is standing
@@ -75,12 +76,12 @@ class Odometry {
   // state change), then the accepted pose and possibly a new keyframe of the model (or no model).
   // From rest, the search starts on odometry.start_voxel_resolution and its result is taken.
   // Otherwise a registration matching fewer than odometry.retry_inlier_fraction of the points
-  // (and, from a steady guess, landing over odometry.retry_distance from it) is retried from zero
-  // motion (the last pose) and on coarser voxels, the result with most inliers kept; one that
-  // stops odometry.retry_distance short of a steady guess is retried from the guess on coarser
-  // voxels. When the result still stops that short, or still matches so few and lands over
-  // odometry.retry_distance from the guess, or hardly any point matches, the guess is returned
-  // and *failed set.
+  // (and, from a steady guess, landing over odometry.retry_distance from it or matching under half
+  // of what the recent registrations matched) is retried from zero motion (the last pose) and on
+  // coarser voxels, the result with most inliers kept; one that stops odometry.retry_distance
+  // short of a steady guess is retried from the guess on coarser voxels. When the result still
+  // stops that short, or still matches so few and lands that far or matches under that half, or
+  // hardly any point matches, the guess is returned and *failed set.
   // quality, when given, receives the figures of the registration returned (or why it failed).
   Eigen::Isometry3d estimate(const PointCloud& frame, const Eigen::Isometry3d& guess, Guess kind, bool* failed = nullptr,
                              RegistrationQuality* quality = nullptr) const;
