@@ -38,7 +38,7 @@ struct LocalMappingConfig {
   double th_min = 0.10;           // close the submap when overlap(first, last) falls below this
   int max_keyframes = 15;         // N_max
   double voxel_resolution = 0.5;  // keyframe voxel maps for the in-submap factors
-  double submap_downsample = 0.25;
+  double submap_downsample = 0.1;
   int max_submap_points = 60000;
   int factor_source_points = 0;  // > 0: keyframe points used as the source of in-submap factors (0: all)
   int max_iterations = 20;
