@@ -261,15 +261,21 @@ TEST(SimRealism, HandheldWalksBouncesAndGlancesWithAMid360) {
   sim::SimulationConfig cfg = config("handheld", 450, sim::parse_realism("motion_distortion"));
   cfg.sensor = "mid360";
   const sim::Simulator sim(cfg);
-  double max_rate_deg = 0.0, length = 0.0;
+  double max_rate_deg = 0.0, length = 0.0, max_accel = 0.0;
   std::vector<double> z;
   for (double t = 0.0; t < 44.0; t += 0.01) {
     const Eigen::Isometry3d a = sim.pose_at_time(t), b = sim.pose_at_time(t + 0.01);
     max_rate_deg = std::max(max_rate_deg, rotation_angle(a.inverse() * b) / 0.01 * 180.0 / M_PI);
     length += (b.translation() - a.translation()).norm();
     z.push_back(a.translation().z());
+    if (t > 0.0)
+      max_accel = std::max(max_accel, (b.translation() - 2.0 * a.translation() + sim.pose_at_time(t - 0.01).translation()).norm() / 1e-4);
   }
-  std::printf("handheld: fastest turn %.0f deg/s, mean speed %.2f m/s\n", max_rate_deg, length / 44.0);
+  std::printf("handheld: fastest turn %.0f deg/s, mean speed %.2f m/s, largest acceleration %.1f m/s^2\n", max_rate_deg,
+              length / 44.0, max_accel);
+  // A walker's hand: the gait's bounce and the stops, no jolt (a speed that steps, a path that
+  // steps back where a straight meets a corner: 20-190 m/s^2 to an IMU).
+  EXPECT_LT(max_accel, 10.0);
   EXPECT_GT(max_rate_deg, 150.0);
   EXPECT_LT(max_rate_deg, 260.0);
   EXPECT_GT(length / 44.0, 0.7);  // waits at crossings included

@@ -55,8 +55,8 @@ void Drive::speed_profile(const Scenario& s, const std::vector<size_t>& corner_s
   double t = 0.0;
   for (size_t i = 0; i < n; ++i) {
     if (i > 0) t += 2.0 * (arc_[i] - arc_[i - 1]) / std::max(v[i] + v[i - 1], 1e-3);
-    knot_t_.push_back(t), knot_s_.push_back(arc_[i]);
-    if (dwell[i] > 0) t += dwell[i], knot_t_.push_back(t), knot_s_.push_back(arc_[i]);
+    knot_t_.push_back(t), knot_s_.push_back(arc_[i]), knot_v_.push_back(v[i]);
+    if (dwell[i] > 0) t += dwell[i], knot_t_.push_back(t), knot_s_.push_back(arc_[i]), knot_v_.push_back(v[i]);
   }
 }
 
@@ -71,8 +71,12 @@ double Drive::arclength(double frame) const {
   const size_t j =
       std::clamp<size_t>(std::upper_bound(knot_t_.begin(), knot_t_.end(), t) - knot_t_.begin(), 1, knot_t_.size() - 1);
   const double dt = knot_t_[j] - knot_t_[j - 1];
-  const double f = dt > 0 ? std::clamp((t - knot_t_[j - 1]) / dt, 0.0, 1.0) : 1.0;
-  return knot_s_[j - 1] + f * (knot_s_[j] - knot_s_[j - 1]);
+  if (dt <= 0) return knot_s_[j];
+  if (knot_v_[j - 1] + knot_v_[j] < 1e-3) return knot_s_[j - 1] + (t - knot_t_[j - 1]) / dt * (knot_s_[j] - knot_s_[j - 1]);
+  // Within a knot interval the speed changes linearly from one knot's to the next's; the interval's
+  // length makes their mean cover its arc exactly.
+  const double u = std::clamp(t - knot_t_[j - 1], 0.0, dt), a = (knot_v_[j] - knot_v_[j - 1]) / dt;
+  return std::min(knot_s_[j - 1] + knot_v_[j - 1] * u + 0.5 * a * u * u, knot_s_[j]);
 }
 
 Eigen::Isometry3d Drive::pose(double frame) const {

@@ -77,7 +77,9 @@ class Drive {
   double length_ = 0.0;
   size_t num_frames_ = 0;
   bool even_ = true;                     // constant speed: frames evenly spaced along the route
-  std::vector<double> knot_t_, knot_s_;  // speed profile: arc length at times (piecewise linear)
+  // Speed profile: arc length and speed at times; constant acceleration between knots, so that the
+  // speed is continuous (an IMU would feel a speed that steps).
+  std::vector<double> knot_t_, knot_s_, knot_v_;
 };
 
 }  // namespace gcmap::sim
