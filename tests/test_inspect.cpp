@@ -180,6 +180,19 @@ TEST(InputAssumptions, SimulatedKittiLayoutIsNotCorrected) {
   EXPECT_EQ(a.to_json().dump().find("\"kitti_elevation_correction\":false") != std::string::npos, true);
 }
 
+TEST(InputAssumptions, ASequenceFolderNamedVelodyneKeepsItsSidecars) {
+  // `gcmap simulate -o run/velodyne` writes the sequence into a folder named velodyne (its scans in
+  // velodyne/velodyne/): its point times lie beside its scans folder, not one level up.
+  TempDir dir;
+  const std::string seq = simulate(dir, "velodyne", "");
+  const InputAssumptions a = decide_input(seq, {});
+  EXPECT_EQ(fs::path(a.root), fs::path(seq));
+  EXPECT_TRUE(a.point_times) << a.point_times_text.evidence;
+  EXPECT_EQ(a.deskew.value, "on");
+  // Its scans folder given itself still finds the sequence folder as its parent.
+  EXPECT_EQ(fs::path(decide_input(seq + "/velodyne", {}).root), fs::path(seq));
+}
+
 TEST(Inspect, EveryTimeConventionReadsCleanly) {
   TempDir dir;
   for (const std::string& field : {"ouster", "velodyne", "hesai", "livox"}) {

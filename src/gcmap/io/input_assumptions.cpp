@@ -160,8 +160,9 @@ void check_first_times(InputAssumptions& a, const std::vector<float>& times, dou
 
 void decide_folder(InputAssumptions& a, const InputOptions& o) {
   const fs::path in = clean(a.input);
-  // DIR/velodyne given itself: the sequence folder is its parent.
-  const bool inside_velodyne = in.filename() == "velodyne";
+  // DIR/velodyne given itself: the sequence folder is its parent (unless it holds a velodyne/ of
+  // its own: then it is the sequence folder, only named so).
+  const bool inside_velodyne = in.filename() == "velodyne" && !is_kitti_layout(a.input);
   a.layout = is_kitti_layout(a.input) || inside_velodyne ? InputLayout::kitti : InputLayout::folder;
   a.root = (inside_velodyne ? in.parent_path() : in).string();
   a.files = list_scan_files(a.input);
