@@ -66,13 +66,14 @@ Scenario make_scenario(const std::string& name, int frames, int route) {
     s.feature_poor = true;
     s.description = "a 500 m straight street between flat facades: degenerate along the street";
   } else if (name == "tunnel") {
-    // Streets, then a 140 m canyon of flat walls entered while accelerating from rest, then streets.
+    // Streets, then a 300 m canyon of flat walls entered while accelerating from rest, then streets:
+    // in its middle both ends lie beyond the sensor's range (100 m).
     s.block = 40.f;
-    add_waypoints(s, {{0, 0}, {6, 0}});
-    s.tunnel_from = 1, s.tunnel_to = 5;
+    add_waypoints(s, {{0, 0}, {10, 0}});
+    s.tunnel_from = 1, s.tunnel_to = 9;
     s.realistic = true;
     s.cruise_min = 12.f, s.cruise_max = 16.f;
-    s.description = "240 m from rest through a 140 m canyon of flat walls: degenerate along it while the speed changes";
+    s.description = "400 m from rest through a 300 m canyon of flat walls: degenerate along it while the speed changes";
   } else if (name == "city") {
     // 3.7 km over a 500 m x 500 m grid of 100 m blocks: a 1.2 km loop, then streets of it again in
     // the same direction (from 1.2 km and 3.4 km) and in the opposite one (from 2.6 km).
