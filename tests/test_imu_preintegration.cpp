@@ -164,6 +164,11 @@ TEST(ImuFactor, JacobiansMatchNumericDifferentiation) {
     Matrix15d info = Matrix15d::Identity();
     info(0, 3) = info(3, 0) = 0.3;
     expect_jacobians_match(NavPriorFactor(0, random_state(rng), info), {states[0]}, "prior");
+    Matrix6d pose_info = 4.0 * Matrix6d::Identity();
+    pose_info(1, 4) = pose_info(4, 1) = 1.0;
+    const Eigen::Isometry3d T_imu_lidar = test::random_pose(rng, 0.5, 0.3);
+    const Eigen::Isometry3d measured = states[0].T_world_imu * T_imu_lidar * test::random_pose(rng, 0.3, 0.5);
+    expect_jacobians_match(LidarPoseFactor(0, measured, pose_info, T_imu_lidar), {states[0]}, "LiDAR pose");
   }
 }
 

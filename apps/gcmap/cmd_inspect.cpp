@@ -41,6 +41,7 @@ void add_inspect(CLI::App& app, Runner& run) {
                               .gnss_topic = "",
                               .use_imu = c.imu.use,
                               .imu_levels_map = c.imu.level_map,
+                              .imu_inertial_odometry = c.imu.inertial_odometry,
                               .imu_file = "",
                               .imu_topic = ""};
       io.sample_scans = opt->sample;

@@ -186,6 +186,12 @@ std::string imu_line(const PipelineStats& s, double configured_offset) {
                       "against rates of {:.3f} rad/s): check imu.roll_deg, pitch_deg and yaw_deg",
                       *s.gyro_rejected_at, s.imu_clock->rms_at_best, s.imu_clock->rms_rate);
   if (s.imu_clock) line += "; " + clock_verdict(*s.imu_clock, configured_offset);
+  line += fmt::format("; the LiDAR-inertial state predicted {} sweeps", s.inertial_predicted);
+  if (s.inertial_bias) {
+    const Eigen::Vector3d bg = s.inertial_bias->gyro * 180.0 / M_PI, ba = s.inertial_bias->accel;
+    line += fmt::format(" (its biases at the end: gyro ({:.4f}, {:.4f}, {:.4f}) deg/s, accelerometer ({:.3f}, {:.3f}, {:.3f}) m/s^2)",
+                        bg.x(), bg.y(), bg.z(), ba.x(), ba.y(), ba.z());
+  }
   const GravityStats& g = s.gravity;
   if (g.levelled)
     line += fmt::format("; the map's z is gravity's ({} windows of the accelerometer, rms tilt {:.3f} deg, accelerometer bias "
@@ -355,6 +361,7 @@ Input open_input(const MapRunOptions& o) {
                         .gnss_topic = o.gnss_topic,
                         .use_imu = o.config.imu.use,
                         .imu_levels_map = o.config.imu.level_map,
+                        .imu_inertial_odometry = o.config.imu.inertial_odometry,
                         .imu_file = o.imu_file,
                         .imu_topic = o.imu_topic};
   if (is_bag_path(o.input)) {

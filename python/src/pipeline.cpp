@@ -142,7 +142,7 @@ placed by the motion model). RuntimeError after finish().)")
            R"(IMU samples, before the scans they span: stamp a float and gyro, accel (3,), or stamps (n,)
 and gyro, accel (n, 3). Gyro in rad/s, acceleration in m/s^2, both in the IMU frame (config.imu places it
 on the LiDAR), stamps on the IMU's clock (config.imu.time_offset), increasing. The gyro deskews the sweeps
-they span, the accelerometer levels the map (config.imu.level_map: z up, the poses then in that frame);
+they span, the LiDAR-inertial state predicts them (config.imu.inertial_odometry), the accelerometer levels the map (config.imu.level_map: z up, the poses then in that frame);
 ignored when config.imu.use is off. ValueError for a bad shape or a stamp not increasing.)")
       .def("finish", &P::finish, py::arg("max_iterations") = py::none(),
            "Closes the open submap and runs the final global optimization (at most max_iterations; 0 skips it).")

@@ -106,6 +106,22 @@ NavLinearization NavPriorFactor::linearize(const NavState* const* states) const 
   return out;
 }
 
+LidarPoseFactor::LidarPoseFactor(int key, const Eigen::Isometry3d& T_world_lidar, const Matrix6d& information,
+                                 const Eigen::Isometry3d& T_imu_lidar)
+    : T_world_lidar_(T_world_lidar), T_imu_lidar_(T_imu_lidar), sqrt_information_(sqrt_of<6>(information)) {
+  keys_ = {key, -1};
+}
+
+NavLinearization LidarPoseFactor::linearize(const NavState* const* states) const {
+  const Vector6d r = se3_log(T_world_lidar_.inverse() * states[0]->T_world_imu * T_imu_lidar_);
+  // T exp(d) T_imu_lidar = T T_imu_lidar exp(Ad(T_lidar_imu) d).
+  NavLinearization out;
+  out.r = sqrt_information_ * r;
+  out.J[0] = Eigen::MatrixXd::Zero(6, 15);
+  out.J[0].leftCols<6>() = sqrt_information_ * se3_right_jacobian_inverse(r) * adjoint(T_imu_lidar_.inverse());
+  return out;
+}
+
 namespace {
 double total_error(const std::vector<std::unique_ptr<NavFactor>>& factors, const std::vector<NavState>& states) {
   double e = 0.0;
@@ -133,6 +149,13 @@ void build_system(const std::vector<std::unique_ptr<NavFactor>>& factors, const 
   }
 }
 }  // namespace
+
+Eigen::MatrixXd nav_information(const std::vector<std::unique_ptr<NavFactor>>& factors, const std::vector<NavState>& states) {
+  Eigen::MatrixXd H;
+  Eigen::VectorXd b;
+  build_system(factors, states, H, b);
+  return H;
+}
 
 NavOptimizationResult optimize_nav_states(const std::vector<std::unique_ptr<NavFactor>>& factors, std::vector<NavState>& states,
                                           int max_iterations) {

@@ -76,6 +76,19 @@ class NavPriorFactor : public NavFactor {
   Matrix15d sqrt_information_;
 };
 
+// A LiDAR pose measured (a registration): r = log(T_measured^-1 T_world_imu T_imu_lidar), [rotation,
+// translation], whitened by the square root of its 6x6 information.
+class LidarPoseFactor : public NavFactor {
+ public:
+  LidarPoseFactor(int key, const Eigen::Isometry3d& T_world_lidar, const Matrix6d& information, const Eigen::Isometry3d& T_imu_lidar);
+  int num_keys() const override { return 1; }
+  NavLinearization linearize(const NavState* const* states) const override;
+
+ private:
+  Eigen::Isometry3d T_world_lidar_, T_imu_lidar_;
+  Matrix6d sqrt_information_;
+};
+
 struct NavOptimizationResult {
   int iterations = 0;
   double initial_error = 0.0, final_error = 0.0;
@@ -86,5 +99,7 @@ struct NavOptimizationResult {
 // Throws Error when a factor references a missing state.
 NavOptimizationResult optimize_nav_states(const std::vector<std::unique_ptr<NavFactor>>& factors, std::vector<NavState>& states,
                                           int max_iterations = 50);
+// The Gauss-Newton information (J^T J) of all states at their values, 15 rows per state.
+Eigen::MatrixXd nav_information(const std::vector<std::unique_ptr<NavFactor>>& factors, const std::vector<NavState>& states);
 
 }  // namespace gcmap

@@ -305,20 +305,26 @@ void decide_gnss(InputAssumptions& a, const InputOptions& o) {
   state_gnss(a, a.gnss_path + (o.gnss_file.empty() ? ", found beside the scans" : ", --gnss"));
 }
 
-// What the run does with an IMU: the gyro deskews (when deskewing is on), the accelerometer levels
-// the map (imu.level_map).
-std::string imu_use(bool deskewing, bool levels_map) {
-  const std::string gyro = deskewing ? "gyro deskews each sweep and predicts its rotation (its bias estimated from the registration)"
-                                     : "gyro not used (deskewing is off)";
-  const std::string accel = levels_map ? "accelerometer levels the map (gravity in the global graph, its bias estimated)"
-                                       : "accelerometer not used (imu.level_map off)";
-  if (!deskewing && !levels_map) return "read, not used: deskewing is off and so is imu.level_map";
-  return gyro + "; " + accel;
+// What the run does with an IMU: the gyro deskews (when deskewing is on), the LiDAR-inertial state
+// predicts the sweeps (imu.inertial_odometry), the accelerometer levels the map (imu.level_map).
+std::string imu_use(bool deskewing, const InputOptions& o) {
+  const std::string gyro = deskewing ? "gyro deskews each sweep (its bias estimated from the registration)"
+                                     : "gyro does not deskew (deskewing is off)";
+  const std::string inertial = o.imu_inertial_odometry
+                                   ? "pose, velocity and biases from the IMU and the registration predict each sweep and place "
+                                     "those the registration cannot (imu.inertial_odometry)"
+                                   : "no LiDAR-inertial state (imu.inertial_odometry off): the gyro predicts the rotation"
+                                     " only";
+  const std::string accel = o.imu_levels_map ? "accelerometer levels the map (gravity in the global graph, its bias estimated)"
+                                             : "accelerometer does not level the map (imu.level_map off)";
+  if (!deskewing && !o.imu_levels_map && !o.imu_inertial_odometry)
+    return "read, not used: deskewing is off and so are imu.level_map and imu.inertial_odometry";
+  return gyro + "; " + inertial + "; " + accel;
 }
 
-void take_imu(InputAssumptions& a, ImuStream stream, const std::string& path, const std::string& how, bool levels_map) {
+void take_imu(InputAssumptions& a, ImuStream stream, const std::string& path, const std::string& how, const InputOptions& o) {
   a.imu_path = path;
-  a.imu = {imu_use(a.deskew.value == "on", levels_map), stream.describe(path) + ", " + how};
+  a.imu = {imu_use(a.deskew.value == "on", o), stream.describe(path) + ", " + how};
   if (!a.stamps.empty() && (stream.samples.back().stamp < a.stamps.front() || stream.samples.front().stamp > a.stamps.back()))
     throw Error(path + ": the IMU stamps (" + std::to_string(stream.samples.front().stamp) + " to " +
                 std::to_string(stream.samples.back().stamp) + " s) do not overlap the scans' (" + std::to_string(a.stamps.front()) +
@@ -342,7 +348,7 @@ void decide_bag_imu(InputAssumptions& a, const InputOptions& o) {
     }
     topic = topics.front(), how = "the bag's only sensor_msgs/Imu topic";
   }
-  take_imu(a, read_bag_imu(*bag, topic), bag->path() + ": topic " + topic, how, o.imu_levels_map);
+  take_imu(a, read_bag_imu(*bag, topic), bag->path() + ": topic " + topic, how, o);
 }
 
 // --no-imu: none; --imu, else --imu-topic, else imu.txt beside the scans as times.txt is (bags:
@@ -365,7 +371,7 @@ void decide_imu(InputAssumptions& a, const InputOptions& o) {
   for (const fs::path& p : candidates) {
     if (!present(p)) continue;
     const std::string path = clean(p).string();
-    take_imu(a, read_imu_txt(path), path, o.imu_file.empty() ? "found beside the scans" : "--imu", o.imu_levels_map);
+    take_imu(a, read_imu_txt(path), path, o.imu_file.empty() ? "found beside the scans" : "--imu", o);
     return;
   }
   if (bag) decide_bag_imu(a, o);

@@ -32,6 +32,7 @@ struct InputOptions {
   std::string gnss_topic;                 // --gnss-topic: a bag's NavSatFix topic (default: its only one)
   bool use_imu = true;                    // imu.use (--no-imu: false)
   bool imu_levels_map = true;             // imu.level_map
+  bool imu_inertial_odometry = true;      // imu.inertial_odometry
   std::string imu_file;                   // --imu: the IMU samples file, instead of imu.txt beside the scans
   std::string imu_topic;                  // --imu-topic: a bag's sensor_msgs/Imu topic (default: its only one)
 };

@@ -318,6 +318,12 @@ void visit_imu(Config& c, Visitor& v) {
     KeyDoc{"m/s^2/sqrt(Hz)", 0, 10, "mapping/",
            "Accelerometer white noise density (default: a MEMS IMU built into a LiDAR, inflated for vibration); part of the "
            "weight of each gravity window (level_map)."});
+  v("imu", "inertial_odometry", c.imu.inertial_odometry,
+    KeyDoc{"-", 0, 0, "odometry/",
+           "Pose, velocity and biases estimated at every sweep from the IMU and the registration (a two-sweep fixed-lag "
+           "smoother), whose pose the sweep takes: the IMU predicts where each sweep starts, translation included, and holds "
+           "what the registration cannot see or place (a tunnel, a fast turn). false: the sweep's pose is its registration's, "
+           "the gyro predicts the rotation, the last motion the translation."});
   v("imu", "level_map", c.imu.level_map,
     KeyDoc{"-", 0, 0, "mapping/",
            "The accelerometer's gravity, measured over every submap's last 2 s of odometry, holds the global graph level: the "

@@ -28,11 +28,11 @@ Mapper::Mapper(const MappingConfig& config, std::shared_ptr<LinearizationBackend
       global_(config_.global, config_.loop, backend_, config_.gnss, config_.imu) {}
 
 FrameStatus Mapper::add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom,
-                              std::optional<KeyframeShape> shape, double stamp) {
+                              std::optional<KeyframeShape> shape, double stamp, bool observed) {
   if (frame != static_cast<int>(frames_.size())) throw Error("Mapper: frames must be numbered consecutively from 0");
   if (!fixes_.empty() && !stamps_.empty() && stamp < stamps_.back())
     throw Error("Mapper: frame " + std::to_string(frame) + "'s stamp is before the previous frame's");
-  frames_.push_back({-1, T_odom});
+  frames_.push_back({-1, T_odom, -1, -1, observed});
   stamps_.push_back(stamp);
   SubmapBuilder::Result r = local_.add_frame(frame, cloud, T_odom, std::move(shape));
   frames_.back().anchor = r.anchor;
@@ -86,6 +86,10 @@ std::optional<GravityWindow> Mapper::gravity_window(const Submap& inserting) {
   size_t m = a;
   while (m + 1 < b && stamps_[m + 1] - stamps_[a] <= stamps_[b] - stamps_[m + 1]) ++m;
   if (b - a < 2 || m == a) return std::nullopt;
+  // A tunnel's positions along it are the IMU's own (odometry/inertial_track.hpp): gravity read from
+  // them would only echo the IMU's errors, and the bias came out at metres per second squared.
+  for (size_t k = a; k <= b; ++k)
+    if (!frames_[k].observed) return std::nullopt;
   std::vector<OdometryFrame> window;
   for (size_t k = a; k <= b; ++k) window.push_back({stamps_[k], frames_[k].T_odom});
   std::optional<GravityWindow> w =

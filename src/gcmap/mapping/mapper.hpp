@@ -62,9 +62,11 @@ class Mapper {
   // Feeds a preprocessed frame (with covariances) and its odometry pose. Frames come in order,
   // numbered from 0; unusable frames (nullptr or too few points) are placed by odometry only.
   // shape: the cloud's keyframe_shape when made ahead.
-  // stamp: s, needed only where GNSS fixes are to be placed.
+  // stamp: s, needed only where GNSS fixes are to be placed. observed: the odometry's position of
+  // the frame comes from a registration that sees every direction (not placed by a prediction, not
+  // degenerate); gravity windows take only such frames, since they read gravity from positions.
   FrameStatus add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom,
-                        std::optional<KeyframeShape> shape = std::nullopt, double stamp = 0.0);
+                        std::optional<KeyframeShape> shape = std::nullopt, double stamp = 0.0, bool observed = true);
   // GNSS fixes (stamps increasing) to place on the submaps as they close: each at the pose
   // interpolated between the frames around its stamp, the antenna at gnss.lever_arm_*.
   void set_gnss(std::vector<GnssPosition> fixes);
@@ -111,6 +113,7 @@ class Mapper {
     int anchor = -1;  // keyframe (frame index) this frame is placed from
     Eigen::Isometry3d T_odom;
     int submap = -1, index = -1;  // for keyframes of closed submaps: where the keyframe is
+    bool observed = true;         // see add_frame
   };
   void insert(Submap submap);
   // The fixes from next_fix_ that can be placed now (their frames are in closed submaps, or in

@@ -143,6 +143,7 @@ MappingPipeline::Tracked MappingPipeline::track_frame(PreparedScan scan, std::op
   f.registration = e.quality;
   f.deskew_shift = e.deskew_shift;
   gyro_deskewed_ += e.gyro ? 1 : 0;
+  inertial_predicted_ += e.inertial ? 1 : 0;
   if (!gyro_warned_ && odometry_.gyro_rejected_at()) {
     spdlog::warn("scan {}: the gyro's rates do not follow the LiDAR's registered rotation: the IMU is no longer used "
                  "(check imu.roll_deg, pitch_deg and yaw_deg)",
@@ -175,7 +176,8 @@ Frame MappingPipeline::map_frame(Tracked t) {
   Frame& f = t.frame;
   if (t.imu_rejected) mapper_.drop_gravity();
   if (t.revised) mapper_.revise_frame(t.revised->frame, t.revised->cloud, t.revised->T_world_frame);
-  f.status = mapper_.add_frame(f.index, t.cloud, f.T_odom, std::move(t.keyframe), f.stamp);
+  const bool observed = !f.odometry_failed && (!f.registration.registered || f.registration.conditioning() >= kDegenerateConditioning);
+  f.status = mapper_.add_frame(f.index, t.cloud, f.T_odom, std::move(t.keyframe), f.stamp, observed);
   if (f.status == FrameStatus::unusable && t.cloud) ++unusable_frames_;
   statuses_.push_back(f.status);
   f.T_world_frame = mapper_.frame_pose(f.index);
@@ -196,6 +198,8 @@ PipelineStats MappingPipeline::stats() const {
   s.odometry_failures = odometry_failures_;
   s.imu_samples = imu_samples_;
   s.gyro_deskewed = gyro_deskewed_;
+  s.inertial_predicted = inertial_predicted_;
+  s.inertial_bias = odometry_.inertial_bias();
   s.gyro_bias = odometry_.gyro_bias();
   s.imu_clock = odometry_.imu_clock_check();
   s.gyro_rejected_at = odometry_.gyro_rejected_at();

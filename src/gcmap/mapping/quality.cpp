@@ -215,7 +215,7 @@ void degeneracy_verdict(QualityReport& r) {
 void failure_verdict(QualityReport& r) {
   for (const auto& [a, b] : stretches(
            r.frames, [](const auto& f) { return f.failed; }, 1))
-    r.verdict.push_back(format("frames %d-%d: odometry failed (%s): placed by the constant-velocity prediction",
+    r.verdict.push_back(format("frames %d-%d: odometry failed (%s): placed by the prediction (the last motion, or the IMU)",
                                r.frames[a].index, r.frames[b].index, to_string(r.frames[a].figures.registration.failure)));
 }
 

@@ -88,6 +88,13 @@ Json stats_json(const MappingPipeline& pipeline) {
     imu["gyro_deskewed_sweeps"] = ps.gyro_deskewed;
     imu["gyro_bias_rad_s"] = bias;  // LiDAR frame, the estimate at the end
     if (ps.gyro_rejected_at) imu["gyro_rejected_at_frame"] = *ps.gyro_rejected_at;
+    imu["inertial_predicted_sweeps"] = ps.inertial_predicted;
+    if (ps.inertial_bias) {
+      Json gyro = Json::array(), accel = Json::array();
+      for (int i = 0; i < 3; ++i) gyro.push_back(ps.inertial_bias->gyro[i]), accel.push_back(ps.inertial_bias->accel[i]);
+      imu["inertial_gyro_bias_rad_s"] = gyro;  // IMU frame, the LiDAR-inertial state's at the end
+      imu["inertial_accel_bias_m_s2"] = accel;
+    }
     if (ps.imu_clock) {
       Json clock = Json::object();
       clock["best_shift_s"] = ps.imu_clock->best_shift;  // to add to imu.time_offset

@@ -34,6 +34,7 @@ RegistrationQuality registration_quality(const RegistrationResult& r, size_t poi
   RegistrationQuality q;
   q.registered = true;
   q.inlier_fraction = points ? static_cast<double>(r.num_inliers) / points : 0.0;
+  q.hessian = r.H;
   if (r.num_inliers == 0) return q;
   // Rotation first, translation last (se3_exp); the translation information once rotation is free.
   const Eigen::Matrix3d Hrr = r.H.topLeftCorner<3, 3>(), Hrt = r.H.topRightCorner<3, 3>();
@@ -50,7 +51,7 @@ const char* to_string(OdometryFailure f) {
   switch (f) {
     case OdometryFailure::none: return "none";
     case OdometryFailure::no_matches: return "hardly any point matched the local model";
-    case OdometryFailure::stops_short: return "the registration stopped short of the constant-velocity prediction";
+    case OdometryFailure::stops_short: return "the registration stopped short of the predicted motion";
     case OdometryFailure::far_with_low_overlap: return "few points matched and the result lay far from the prediction";
     case OdometryFailure::overlap_collapsed: return "far fewer points matched than in the frames before";
   }
@@ -104,22 +105,24 @@ bool Odometry::revise_keyframe(const PointCloud& old, const std::shared_ptr<cons
   return true;
 }
 
-Eigen::Isometry3d Odometry::track(const std::shared_ptr<const PointCloud>& frame, std::optional<double> stamp, bool* ok) {
+Eigen::Isometry3d Odometry::track(const std::shared_ptr<const PointCloud>& frame, std::optional<double> stamp, bool* ok,
+                                  const std::optional<Eigen::Isometry3d>& guess) {
   const bool usable = frame && frame->size() >= 100 && frame->has_covs();
   if (ok) *ok = usable;
   last_failed_ = false;
   last_quality_ = {};
+  const Eigen::Isometry3d predicted = guess ? *guess : predict(stamp);
   if (!usable) {
-    const Eigen::Isometry3d T = predict(stamp);
-    set_pose(T, stamp);
-    return T;
+    set_pose(predicted, stamp);
+    return predicted;
   }
   if (!model_) {
-    set_pose(frames_ == 0 ? Eigen::Isometry3d::Identity() : predict(stamp), stamp);
+    set_pose(frames_ == 0 ? Eigen::Isometry3d::Identity() : predicted, stamp);
     add_keyframe(frame, last_);
     return last_;
   }
-  const Eigen::Isometry3d T = estimate(*frame, predict(stamp), guess_kind(stamp), &last_failed_, &last_quality_);
+  const Guess kind = guess && frames_ >= 2 ? Guess::steady : guess_kind(stamp);
+  const Eigen::Isometry3d T = estimate(*frame, predicted, kind, &last_failed_, &last_quality_);
   accept(frame, T, stamp, last_failed_, last_quality_);
   return last_;
 }

@@ -36,6 +36,12 @@ struct OdometryConfig {
 enum class OdometryFailure { none, no_matches, stops_short, far_with_low_overlap, overlap_collapsed };
 const char* to_string(OdometryFailure f);
 
+// A registration whose translation is this poorly conditioned (RegistrationQuality::conditioning;
+// smallest over largest eigenvalue) sees mostly parallel structure (a straight road's rails, a tunnel):
+// its sweep gets the two-sweep velocity, the LiDAR-inertial state drops that direction, and gravity
+// windows leave the frame out.
+constexpr double kDegenerateConditioning = 0.1;
+
 // What a frame's accepted scan-to-model registration says about itself, from the Hessian the
 // registration built anyway (quality.json). Translation information is the Hessian's translation
 // block with the rotation marginalized (Schur complement), per inlier point.
@@ -44,6 +50,7 @@ struct RegistrationQuality {
   Eigen::Vector3d translation_information = Eigen::Vector3d::Zero();  // eigenvalues, ascending (1/m^2)
   Eigen::Vector3d weak_direction = Eigen::Vector3d::UnitX();          // unit, in the frame: the least constrained translation
   double inlier_fraction = 0.0;                                       // of the frame's points
+  Matrix6d hessian = Matrix6d::Zero();                                // the registration's, over [rotation, translation]
   OdometryFailure failure = OdometryFailure::none;
   // Smallest over largest translation eigenvalue: 1 constrained alike in every direction, near 0 degenerate.
   double conditioning() const {
@@ -64,9 +71,9 @@ class Odometry {
   // registration fails (see estimate) gets the prediction and last_failed(); after 3 such frames in
   // a row the model is dropped, and the next usable frame starts a new one at the prediction. The
   // model keeps the frame: it must not change afterwards (it is subtracted from the model as it
-  // ages out).
+  // ages out). guess: a prediction from elsewhere (an IMU) taken instead of the constant-velocity one.
   Eigen::Isometry3d track(const std::shared_ptr<const PointCloud>& frame, std::optional<double> stamp = std::nullopt,
-                          bool* ok = nullptr);
+                          bool* ok = nullptr, const std::optional<Eigen::Isometry3d>& guess = std::nullopt);
   // What a prediction rests on: no motion known (the second frame, after a gap of
   // odometry.max_gap, or after 3 frames in a row placed by the prediction); the last motion over
   // an equal interval (within 1.5x: driver jitter); the last motion scaled to another interval.

@@ -10,10 +10,6 @@ namespace gcmap {
 
 namespace {
 
-// A registration whose translation is this poorly conditioned (smallest over largest eigenvalue of
-// its information) sees mostly parallel structure: its sweep gets the two-sweep velocity.
-constexpr double kDegenerateConditioning = 0.1;
-
 double mean_time(const PointCloud& cloud) {
   double sum = 0.0;
   for (const float t : cloud.times) sum += t;
@@ -37,10 +33,33 @@ SweepOdometry::SweepOdometry(const OdometryConfig& config, const PreprocessConfi
       odometry_(config_, backend_),
       use_imu_(imu.use),
       gyro_noise_(imu.noise.gyro_noise),
-      gyro_(imu) {}
+      gyro_(imu),
+      inertial_enabled_(imu.use && imu.inertial_odometry),
+      inertial_(imu) {}
 
 void SweepOdometry::add_imu(const ImuSample& sample) {
-  if (use_imu_) gyro_.add(sample);
+  if (!use_imu_) return;
+  gyro_.add(sample);
+  if (inertial_enabled_) inertial_.add(sample);
+}
+
+std::optional<Eigen::Isometry3d> SweepOdometry::inertial_guess(double stamp) const {
+  if (!inertial_enabled_ || gyro_rejected_at_) return std::nullopt;
+  return inertial_.predict(stamp);
+}
+
+std::optional<Eigen::Isometry3d> SweepOdometry::observe_inertial(const SweepEstimate& e, const SweepReference& reference) {
+  if (!inertial_enabled_) return std::nullopt;
+  if (gyro_rejected_at_) {
+    inertial_.reset();
+    return std::nullopt;
+  }
+  const bool registered = e.quality.registered && !e.failed;
+  const Matrix6d information = registered ? registration_information(e.quality.hessian) : Matrix6d::Zero();
+  const bool ready = inertial_.ready();
+  inertial_.observe(reference.stamp, reference.pose, registered ? &information : nullptr);
+  if (!ready || !inertial_.ready()) return std::nullopt;
+  return normalized(inertial_.state().T_world_imu * inertial_.T_imu_lidar());
 }
 
 std::shared_ptr<const SweepOdometry::GyroSweep> SweepOdometry::gyro_sweep(const PointCloud& cloud, double stamp) const {
@@ -139,13 +158,17 @@ SweepEstimate SweepOdometry::track(const std::shared_ptr<PointCloud>& cloud, dou
     }
     odometry_.set_pose(*T_odom, stamp);
     reference_ = {*T_odom, stamp};
+    inertial_.reset();
     e.T_world_frame = *T_odom;
   } else if (!timed || !odometry_.has_model() || cloud->size() < 100 || !cloud->has_covs()) {
     const bool starts_model = !odometry_.has_model();
-    e.T_world_frame = odometry_.track(cloud, stamp);
+    const std::optional<Eigen::Isometry3d> guess = inertial_guess(stamp);
+    e.T_world_frame = odometry_.track(cloud, stamp, nullptr, guess);
+    e.inertial = guess.has_value();
     e.failed = odometry_.last_failed();
     e.quality = odometry_.last_quality();
     reference_ = {e.T_world_frame, stamp};
+    observe_inertial(e, reference_);
     if (starts_model && odometry_.has_model() && deskew_ && cloud->has_times())
       first_ = FirstSweep{*cloud, stamp, e.T_world_frame, frames_};
   } else {
@@ -216,10 +239,11 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
   PointCloud raw = *cloud;
   const double t_mean = mean_time(raw);
   SweepEstimate e;
-  Eigen::Isometry3d T = odometry_.predict(stamp);
-  const Odometry::Guess kind = odometry_.guess_kind(stamp);
+  const std::optional<Eigen::Isometry3d> inertial = inertial_guess(stamp);
+  Eigen::Isometry3d T = inertial ? *inertial : odometry_.predict(stamp);
+  const Odometry::Guess kind = inertial ? Odometry::Guess::steady : odometry_.guess_kind(stamp);
   const std::shared_ptr<const GyroSweep> gyro = gyro_sweep(raw, stamp);
-  if (gyro) T.linear() = last_->first.linear() * gyro_.rotation(last_->second, stamp);
+  if (gyro && !inertial) T.linear() = last_->first.linear() * gyro_.rotation(last_->second, stamp);
   MeanVelocity mean{se3_log(last_->first.inverse() * T) / dt, stamp - 0.5 * dt};
   SweepMotion m = sweep_motion(mean, stamp, gyro);
   for (int pass = 0; pass < 4; ++pass) {
@@ -245,6 +269,7 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
   // The gyro's rotations compose with the last pose's; through a run of failures nothing registered
   // re-orthonormalizes them.
   if (gyro) T = normalized(T);
+  if (const auto fused = observe_inertial(e, {T * m.T_stamp(t_mean), stamp + t_mean})) T = *fused * m.T_stamp(t_mean).inverse();
   *cloud = raw;
   m.deskew(*cloud);
   e.deskew_shift = mean_shift(raw, *cloud);
@@ -264,6 +289,7 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
   e.T_world_frame = T;
   e.deskewed = true;
   e.gyro = gyro != nullptr;
+  e.inertial = inertial.has_value();
   return e;
 }
 

@@ -9,6 +9,7 @@
 #include "gcmap/core/deskew.hpp"
 #include "gcmap/graph/imu_preintegration.hpp"
 #include "gcmap/odometry/gyro_track.hpp"
+#include "gcmap/odometry/inertial_track.hpp"
 #include "gcmap/odometry/odometry.hpp"
 #include "gcmap/odometry/preprocess_scan.hpp"
 
@@ -26,6 +27,7 @@ struct SweepEstimate {
   Eigen::Isometry3d T_world_frame = Eigen::Isometry3d::Identity();  // at the scan stamp
   bool deskewed = false;
   bool gyro = false;            // deskewed with the IMU's rotation rates
+  bool inertial = false;        // started from the LiDAR-inertial state's prediction
   bool failed = false;          // registration rejected (see Odometry::estimate): placed by the prediction
   bool lost = false;            // the last of failed frames in a row: the next usable frame starts a new model
   RegistrationQuality quality;  // of the registration that placed the frame
@@ -49,6 +51,8 @@ class SweepOdometry {
   // The frame from which the gyro is no longer used, its rates not following the registered
   // rotation (GyroTrack::disagrees); empty while it is.
   std::optional<int> gyro_rejected_at() const { return gyro_rejected_at_; }
+  // The LiDAR-inertial state's last biases (imu.inertial_odometry; IMU frame), once it was known.
+  std::optional<ImuBias> inertial_bias() const { return inertial_enabled_ ? inertial_.last_bias() : std::nullopt; }
 
   // The pose of a prepared scan (null: unusable, placed by the prediction) at `stamp`, stamps
   // non-decreasing. A scan with per-point times is deskewed in place into the sensor frame at the
@@ -59,6 +63,8 @@ class SweepOdometry {
 
  private:
   SweepEstimate track_deskewed(const std::shared_ptr<PointCloud>& cloud, double stamp, double dt);
+  // The IMU-propagated pose at `stamp`, when the inertial state is known and trusted.
+  std::optional<Eigen::Isometry3d> inertial_guess(double stamp) const;
 
   // A registered mean velocity [omega; rho] between two instants, and the middle of them.
   struct MeanVelocity {
@@ -117,6 +123,9 @@ class SweepOdometry {
     Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
     double stamp = 0.0;  // absolute
   };
+  // The frame's registration (or none) at `reference` joins the inertial state; the state's pose
+  // there afterwards, which the frame takes, when the state was known before.
+  std::optional<Eigen::Isometry3d> observe_inertial(const SweepEstimate& e, const SweepReference& reference);
   // The rate that makes the gyro's rotation from the last sweep's reference to `time`, where the
   // registration put T_world_mean, agree with the registered one: the gyro's noise and bias
   // integrated over that window, spread evenly (zero when too close).
@@ -134,6 +143,8 @@ class SweepOdometry {
   bool use_imu_;
   double gyro_noise_;
   GyroTrack gyro_;
+  bool inertial_enabled_;
+  InertialTrack inertial_;
   std::deque<SweepReference> gyro_references_;  // the registered sweeps of the last second, in a row
   std::optional<int> gyro_rejected_at_;
   int frames_ = 0;

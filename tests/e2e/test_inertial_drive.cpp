@@ -1,0 +1,82 @@
+// The LiDAR-inertial odometry end to end (`gcmap simulate --imu`, `gcmap map`): where LiDAR alone
+// cannot see the motion (a canyon of flat walls) or cannot follow it (a sensor in hand), the IMU's
+// state carries the drive.
+#include <gtest/gtest.h>
+
+#include <regex>
+
+#include "gcmap/io/trajectory_io.hpp"
+#include "test_util.hpp"
+
+namespace gcmap::test {
+namespace {
+
+// How far the estimate's motion from the first frame at or past x_from (in the truth) to the last
+// frame differs from the truth's, over the length of that motion.
+double drift_fraction(const std::vector<Eigen::Isometry3d>& truth, const std::vector<Eigen::Isometry3d>& est, double x_from) {
+  size_t first = 0;
+  while (first + 1 < truth.size() && truth[first].translation().x() < x_from) ++first;
+  const Eigen::Isometry3d t = truth[first].inverse() * truth.back(), e = est[first].inverse() * est.back();
+  return (t.translation() - e.translation()).norm() / t.translation().norm();
+}
+
+double number_after(const std::string& text, const std::string& key) {
+  std::smatch m;
+  if (!std::regex_search(text, m, std::regex(key + "([-0-9.e]+)"))) return -1.0;
+  return std::stod(m[1]);
+}
+
+TEST(InertialDrive, TheImuCarriesTheDriveThroughACanyonLidarCannotSeeAlong) {
+  TempDir dir;
+  // Every realism key but the beams' elevation bias, which the run would first estimate over its
+  // first 300 frames (left out for time: here it would only bend the drive).
+  const CliRun sim = run_gcmap("simulate -o " + dir / "tunnel" +
+                               " --scenario tunnel --frames 250 --imu --realism motion_distortion,moving_objects,range_noise,"
+                               "dropouts,mixed_pixels,spurious,curbs,vegetation");
+  ASSERT_EQ(sim.code, 0) << sim.err;
+  const auto truth = read_trajectory(dir / "tunnel/poses.txt").poses;
+  double drift[2];
+  for (int imu = 0; imu < 2; ++imu) {
+    const std::string out = dir / (imu ? "imu" : "lidar");
+    const CliRun r = run_gcmap("map " + dir / "tunnel" + " -o " + out + " --quiet --no-render --no-elevation-estimate" +
+                               (imu ? "" : " --no-imu"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto est = read_trajectory(out + "/trajectory.kitti").poses;
+    ASSERT_EQ(est.size(), truth.size());
+    drift[imu] = drift_fraction(truth, est, 50.0);  // the canyon starts at 46 m
+    if (imu)
+      EXPECT_GT(number_after(slurp(out + "/stats.json"), "\"inertial_predicted_sweeps\":"), 200.0)
+          << "the state is found within the first seconds";
+  }
+  std::printf("drift through the canyon: LiDAR only %.1f %%, with the IMU %.1f %%\n", 100 * drift[0], 100 * drift[1]);
+  EXPECT_GT(drift[0], 0.3) << "LiDAR alone should not see the motion along the canyon";
+  EXPECT_LT(drift[1], 0.15);
+  EXPECT_LT(drift[1], 0.25 * drift[0]);
+}
+
+TEST(InertialDrive, AHandheldWalkNeedsNoPredictionWithTheImu) {
+  // 30 s of the walk: gait, glances at up to 225 deg/s, two corners and a wait.
+  TempDir dir;
+  const CliRun sim = run_gcmap("simulate -o " + dir / "walk" + " --scenario handheld --frames 300 --imu");
+  ASSERT_EQ(sim.code, 0) << sim.err;
+  double failures[2], ate[2];
+  for (int imu = 0; imu < 2; ++imu) {
+    const std::string out = dir / (imu ? "imu" : "lidar");
+    const CliRun r = run_gcmap("map " + dir / "walk" + " -o " + out + " --quiet --no-render" + (imu ? "" : " --no-imu"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    failures[imu] = number_after(slurp(out + "/stats.json"), "\"odometry_failures\":");
+    const CliRun eval = run_gcmap("eval --gt " + dir / "walk/poses.txt" + " --est " + out + "/trajectory.kitti");
+    ASSERT_EQ(eval.code, 0) << eval.err;
+    ate[imu] = number_after(eval.out, "\"ate_m\":\\{\"rmse\":");
+  }
+  std::printf("handheld: odometry failures %.0f / %.0f, ATE %.3f / %.3f m (LiDAR only / with the IMU)\n", failures[0], failures[1],
+              ate[0], ate[1]);
+  EXPECT_GT(failures[0], 20.0);
+  EXPECT_EQ(failures[1], 0.0);
+  EXPECT_GE(ate[1], 0.0);
+  EXPECT_LT(ate[1], 0.3);
+  EXPECT_GT(ate[0], 1.0);
+}
+
+}  // namespace
+}  // namespace gcmap::test
