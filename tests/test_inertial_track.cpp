@@ -6,6 +6,13 @@
 namespace gcmap {
 namespace {
 
+Matrix6d well_constrained() {
+  Matrix6d info = Matrix6d::Identity();
+  info.topLeftCorner<3, 3>() *= 1e6;  // 1 mrad
+  info.bottomRightCorner<3, 3>() *= 1e4;  // 1 cm
+  return info;
+}
+
 // The LiDAR sits 0.1 m ahead of the IMU, turned 90 deg about z; the odometry's frame is the first
 // LiDAR pose, tilted against gravity as a sensor on a slope is.
 struct Rig {
@@ -16,17 +23,18 @@ struct Rig {
     config.x = 0.1, config.yaw_deg = 90.0;
     T_world_odom = lidar_in_world(0.0);
   }
+  // A track given the samples up to `samples_until` (s) and the true sweeps 0.1 s apart from
+  // `first` to `last` (both included), registered as `information` says.
+  InertialTrack track(double samples_until, int first, int last, const Matrix6d& information) const {
+    InertialTrack t(config);
+    for (const ImuSample& s : traj.samples(0.0, samples_until, 200.0)) t.add(s);
+    for (int k = first; k <= last; ++k) t.observe(0.1 * k, lidar(0.1 * k), &information);
+    return t;
+  }
   Eigen::Isometry3d lidar_in_world(double t) const { return traj.state(t).T_world_imu * config.T_lidar_imu().inverse(); }
   Eigen::Isometry3d lidar(double t) const { return T_world_odom.inverse() * lidar_in_world(t); }
   double position_error(const Eigen::Isometry3d& T, double t) const { return (T.translation() - lidar(t).translation()).norm(); }
 };
-
-Matrix6d well_constrained() {
-  Matrix6d info = Matrix6d::Identity();
-  info.topLeftCorner<3, 3>() *= 1e6;  // 1 mrad
-  info.bottomRightCorner<3, 3>() *= 1e4;  // 1 cm
-  return info;
-}
 
 TEST(InertialTrack, FindsGravityAndPredictsTheNextSweep) {
   Rig rig;
@@ -48,11 +56,8 @@ TEST(InertialTrack, FindsGravityAndPredictsTheNextSweep) {
 }
 
 TEST(InertialTrack, CarriesTheOdometryThroughASecondWithoutRegistration) {
-  Rig rig;
-  InertialTrack track(rig.config);
-  for (const ImuSample& s : rig.traj.samples(0.0, 4.0, 200.0)) track.add(s);
-  const Matrix6d info = well_constrained();
-  for (int k = 0; k <= 20; ++k) track.observe(0.1 * k, rig.lidar(0.1 * k), &info);
+  const Rig rig;
+  InertialTrack track = rig.track(4.0, 0, 20, well_constrained());
   // Constant velocity would be off by decimetres here (accelerations up to 5 m/s^2).
   for (int k = 21; k <= 30; ++k) {
     const std::optional<Eigen::Isometry3d> T = track.predict(0.1 * k);
@@ -64,12 +69,9 @@ TEST(InertialTrack, CarriesTheOdometryThroughASecondWithoutRegistration) {
 
 TEST(InertialTrack, TheImuHoldsWhatTheRegistrationCannotSee) {
   // Along the LiDAR's x the registration sees nothing (a tunnel) and slides: its x is 2 m/s off.
-  Rig rig;
-  InertialTrack track(rig.config);
-  for (const ImuSample& s : rig.traj.samples(0.0, 4.0, 200.0)) track.add(s);
-  const Matrix6d info = well_constrained();
-  for (int k = 0; k <= 15; ++k) track.observe(0.1 * k, rig.lidar(0.1 * k), &info);
-  Matrix6d degenerate = info;
+  const Rig rig;
+  InertialTrack track = rig.track(4.0, 0, 15, well_constrained());
+  Matrix6d degenerate = well_constrained();
   degenerate(3, 3) = 1e-6;
   for (int k = 16; k <= 30; ++k) {
     const double t = 0.1 * k;
@@ -82,15 +84,13 @@ TEST(InertialTrack, TheImuHoldsWhatTheRegistrationCannotSee) {
 }
 
 TEST(InertialTrack, StartsAgainAfterAReset) {
-  Rig rig;
-  InertialTrack track(rig.config);
-  for (const ImuSample& s : rig.traj.samples(0.0, 3.0, 200.0)) track.add(s);
-  const Matrix6d info = well_constrained();
-  for (int k = 0; k <= 10; ++k) track.observe(0.1 * k, rig.lidar(0.1 * k), &info);
+  const Rig rig;
+  InertialTrack track = rig.track(3.0, 0, 10, well_constrained());
   ASSERT_TRUE(track.ready());
   track.reset();
   EXPECT_FALSE(track.ready());
   EXPECT_FALSE(track.predict(1.2));
+  const Matrix6d info = well_constrained();
   for (int k = 12; k <= 22; ++k) track.observe(0.1 * k, rig.lidar(0.1 * k), &info);
   ASSERT_TRUE(track.ready());
   EXPECT_LT(rig.position_error(*track.predict(2.3), 2.3), 2e-3);
