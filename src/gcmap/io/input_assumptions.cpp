@@ -311,8 +311,8 @@ std::string imu_use(bool deskewing, const InputOptions& o) {
   const std::string gyro = deskewing ? "gyro deskews each sweep (its bias estimated from the registration)"
                                      : "gyro does not deskew (deskewing is off)";
   const std::string inertial = o.imu_inertial_odometry
-                                   ? "pose, velocity and biases from the IMU and the registration predict each sweep and place "
-                                     "those the registration cannot (imu.inertial_odometry)"
+                                   ? "pose, velocity and biases from the IMU and the registration predict each sweep and give "
+                                     "its pose, also where the registration cannot see or place it (imu.inertial_odometry)"
                                    : "no LiDAR-inertial state (imu.inertial_odometry off): the gyro predicts the rotation"
                                      " only";
   const std::string accel = o.imu_levels_map ? "accelerometer levels the map (gravity in the global graph, its bias estimated)"
