@@ -3,7 +3,7 @@
 #include <cmath>
 
 #include "gcmap/core/se3.hpp"
-#include "gcmap/mapping/gravity.hpp"
+#include "gcmap/graph/gravity_window.hpp"
 #include "gcmap/sim/imu.hpp"
 
 namespace gcmap {

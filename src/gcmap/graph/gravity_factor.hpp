@@ -1,6 +1,6 @@
 #pragma once
 // Factors that tie a pose graph to gravity. An accelerometer, over a window of known motion,
-// measures gravity in a pose's frame up to its own bias (mapping/gravity.hpp); the world's gravity
+// measures gravity in a pose's frame up to its own bias (graph/gravity_window.hpp); the world's gravity
 // is along -z. The bias is a variable of the graph, carried by a pose whose translation is the
 // bias and whose rotation stays the identity (AccelBiasPriorFactor), so the pose-only LM solves
 // it jointly with the poses: a bias fixed to the body turns with it, gravity does not.

@@ -29,7 +29,7 @@ struct ImuNoise {
 // used, how it sits on the LiDAR, its clock and its noise.
 struct ImuConfig {
   bool use = true;
-  bool level_map = true;  // the accelerometer's gravity levels the global graph (mapping/gravity.hpp)
+  bool level_map = true;  // the accelerometer's gravity levels the global graph (graph/gravity_window.hpp)
   bool inertial_odometry = true;  // IMU-propagated states predict the sweeps (odometry/inertial_track.hpp)
   // The IMU frame in the LiDAR frame: a translation (m) and roll, pitch, yaw (deg, applied in that
   // order about the LiDAR's fixed axes).

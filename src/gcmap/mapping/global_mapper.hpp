@@ -13,7 +13,7 @@
 #include "gcmap/graph/levenberg_marquardt.hpp"
 #include "gcmap/mapping/config.hpp"
 #include "gcmap/mapping/factor_kind.hpp"
-#include "gcmap/mapping/gravity.hpp"
+#include "gcmap/graph/gravity_window.hpp"
 #include "gcmap/mapping/loop_detector.hpp"
 #include "gcmap/mapping/submap.hpp"
 

@@ -74,7 +74,7 @@ class Mapper {
   GnssStats gnss_stats() const;
   // An IMU sample (on the IMU's clock, in its frame; imu.time_offset and T_lidar_imu apply), before
   // the frames it spans: each closing submap gets the accelerometer's gravity over the last
-  // seconds of odometry (mapping/gravity.hpp). Ignored unless imu.use and imu.level_map.
+  // seconds of odometry (graph/gravity_window.hpp). Ignored unless imu.use and imu.level_map.
   void add_imu(const ImuSample& sample);
   // The IMU was found misplaced (its gyro disagrees): no more gravity, and none of what was taken.
   void drop_gravity();

@@ -78,47 +78,41 @@ void InertialTrack::observe(double time, const Eigen::Isometry3d& T_world_lidar,
     start_.clear();
   } else {
     start_.push_back({time, T_world_lidar});
-    while (start_.size() > 2 && start_[1].time <= time - kInitSpan) start_.erase(start_.begin());
-    if (time - start_.front().time >= kInitSpan && initialize()) start_.clear();
+    while (start_.size() > 2 && start_[1].stamp <= time - kInitSpan) start_.erase(start_.begin());
+    if (time - start_.front().stamp >= kInitSpan && initialize()) start_.clear();
   }
   // Samples before what can still be needed go (in blocks: the vector shifts).
-  const double keep = state_ ? state_time_ : (start_.empty() ? time : start_.front().time);
+  const double keep = state_ ? state_time_ : (start_.empty() ? time : start_.front().stamp);
   const auto first = std::lower_bound(samples_.begin(), samples_.end(), keep - 0.1,
                                       [](const ImuSample& s, double t) { return s.stamp < t; });
   if (first - samples_.begin() > 1000) samples_.erase(samples_.begin(), first);
 }
 
 bool InertialTrack::initialize() {
-  const Registered &a = start_.front(), &b = start_.back();
-  const double middle = 0.5 * (a.time + b.time);
-  const auto m_it = std::min_element(start_.begin(), start_.end(),
-                                     [&](const Registered& x, const Registered& y) { return std::abs(x.time - middle) < std::abs(y.time - middle); });
-  const Registered& m = *m_it;
-  const double T1 = m.time - a.time, T2 = b.time - m.time;
-  if (T1 < kMinHalf || T2 < kMinHalf || !covers(a.time, b.time)) return false;
-  // The specific force alone integrated from rest (world frame, each interval turned by the
-  // registered rotation at its start): P and V over [a, m] and [m, b].
-  const Eigen::Isometry3d T_lidar_imu = T_imu_lidar_.inverse();
-  Eigen::Vector3d P_am = Eigen::Vector3d::Zero(), V_am = Eigen::Vector3d::Zero(), P = Eigen::Vector3d::Zero(),
-                  V = Eigen::Vector3d::Zero();
-  for (size_t k = 0; k + 1 < start_.size(); ++k) {
-    if (&start_[k] == &m) P_am = P, V_am = V, P.setZero(), V.setZero();
-    ImuPreintegration pre({}, config_.noise);
-    pre.integrate(samples_, start_[k].time, start_[k + 1].time);
-    const Eigen::Matrix3d R = start_[k].T_world_lidar.linear() * T_lidar_imu.linear();
-    P += V * pre.dt() + R * pre.delta_p();
-    V += R * pre.delta_v();
-  }
-  const auto p = [&](const Registered& r) { return Eigen::Vector3d((r.T_world_lidar * T_lidar_imu).translation()); };
-  const Eigen::Vector3d g = ((p(b) - p(m)) / T2 - (p(m) - p(a)) / T1 + P_am / T1 - V_am - P / T2) / (0.5 * (T1 + T2));
+  const size_t b = start_.size() - 1;
+  const double middle = 0.5 * (start_.front().stamp + start_[b].stamp);
+  const size_t m = std::min_element(start_.begin(), start_.end(),
+                                    [&](const OdometryFrame& x, const OdometryFrame& y) {
+                                      return std::abs(x.stamp - middle) < std::abs(y.stamp - middle);
+                                    }) -
+                   start_.begin();
+  const double T2 = start_[b].stamp - start_[m].stamp;
+  if (start_[m].stamp - start_.front().stamp < kMinHalf || T2 < kMinHalf) return false;
+  const std::optional<GravityWindow> window = gravity_window(samples_, start_, 0, m, b, config_, Eigen::Isometry3d::Identity());
+  if (!window) return false;
+  const Eigen::Vector3d g = window->gravity(Eigen::Vector3d::Zero());
   if (std::abs(g.norm() - config_.gravity) > kGravityTolerance * config_.gravity) return false;
   gravity_ = g.normalized() * config_.gravity;
-  const Eigen::Vector3d v_m = (p(b) - p(m) - 0.5 * gravity_ * T2 * T2 - P) / T2;
+  // The velocity over [m, b] from the positions there and what the specific force adds.
+  const Eigen::Isometry3d T_lidar_imu = T_imu_lidar_.inverse();
+  const auto p = [&](size_t k) { return Eigen::Vector3d(start_[k].T_odom_lidar * T_lidar_imu.translation()); };
+  const ForceIntegral mb = integrate_force(samples_, start_, m, b, config_);
+  const Eigen::Vector3d v_m = (p(b) - p(m) - 0.5 * gravity_ * T2 * T2 - mb.P) / T2;
   NavState s;
-  s.T_world_imu = b.T_world_lidar * T_lidar_imu;
-  s.velocity = v_m + gravity_ * T2 + V;
+  s.T_world_imu = start_[b].T_odom_lidar * T_lidar_imu;
+  s.velocity = v_m + gravity_ * T2 + mb.V;
   state_ = s;
-  state_time_ = b.time;
+  state_time_ = start_[b].stamp;
   Vector15d sigma;
   sigma << Eigen::Vector3d::Constant(kStartRotation), Eigen::Vector3d::Constant(kStartPosition),
       Eigen::Vector3d::Constant(kStartVelocity), Eigen::Vector3d::Constant(kStartGyroBias), Eigen::Vector3d::Constant(kStartAccelBias);

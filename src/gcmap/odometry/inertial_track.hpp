@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "gcmap/core/imu_sample.hpp"
+#include "gcmap/graph/gravity_window.hpp"
 #include "gcmap/graph/imu_factors.hpp"
 #include "gcmap/graph/imu_preintegration.hpp"
 
@@ -45,19 +46,16 @@ class InertialTrack {
   const std::optional<ImuBias>& last_bias() const { return last_bias_; }
 
  private:
-  struct Registered {
-    double time;
-    Eigen::Isometry3d T_world_lidar;
-  };
   bool covers(double t0, double t1) const;
-  // From the registered poses of the last second and the samples: gravity and the last velocity.
+  // From the registered poses of the last second and the samples: gravity (a gravity window over
+  // them, graph/gravity_window.hpp) and the last velocity.
   bool initialize();
   void update(double time, const Eigen::Isometry3d* T_world_lidar, const Matrix6d* information);
 
   ImuConfig config_;
   Eigen::Isometry3d T_imu_lidar_;
   std::vector<ImuSample> samples_;  // LiDAR clock, IMU frame
-  std::vector<Registered> start_;   // registered in a row, until the state is known
+  std::vector<OdometryFrame> start_;  // registered in a row, until the state is known
   std::optional<NavState> state_;
   double state_time_ = 0.0;
   Matrix15d information_ = Matrix15d::Zero();  // of state_

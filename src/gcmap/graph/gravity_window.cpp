@@ -1,4 +1,4 @@
-#include "gcmap/mapping/gravity.hpp"
+#include "gcmap/graph/gravity_window.hpp"
 
 #include <cmath>
 
@@ -14,12 +14,7 @@ bool covers(const std::vector<ImuSample>& samples, double t0, double t1) {
   return !samples.empty() && samples.front().stamp <= t0 && samples.back().stamp >= t1;
 }
 
-// The velocity V and position P the specific force alone gives from frame i0 to i1 (odometry
-// frame, starting at rest), and their derivatives by the accelerometer's bias.
-struct ForceIntegral {
-  Eigen::Vector3d V = Eigen::Vector3d::Zero(), P = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d dV = Eigen::Matrix3d::Zero(), dP = Eigen::Matrix3d::Zero();
-};
+}  // namespace
 
 ForceIntegral integrate_force(const std::vector<ImuSample>& samples, const std::vector<OdometryFrame>& frames, size_t i0,
                               size_t i1, const ImuConfig& imu) {
@@ -37,7 +32,6 @@ ForceIntegral integrate_force(const std::vector<ImuSample>& samples, const std::
   }
   return f;
 }
-}  // namespace
 
 std::optional<GravityWindow> gravity_window(const std::vector<ImuSample>& samples, const std::vector<OdometryFrame>& frames,
                                             size_t a, size_t m, size_t b, const ImuConfig& imu,

@@ -24,6 +24,16 @@ struct OdometryFrame {
   Eigen::Isometry3d T_odom_lidar = Eigen::Isometry3d::Identity();
 };
 
+// The velocity V and position P the specific force alone gives from frame i0 to i1 (odometry
+// frame, starting at rest; each interval turned by the odometry's rotation at its start), and their
+// derivatives by the accelerometer's bias. samples as for gravity_window, covering the frames.
+struct ForceIntegral {
+  Eigen::Vector3d V = Eigen::Vector3d::Zero(), P = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d dV = Eigen::Matrix3d::Zero(), dP = Eigen::Matrix3d::Zero();
+};
+ForceIntegral integrate_force(const std::vector<ImuSample>& samples, const std::vector<OdometryFrame>& frames, size_t i0,
+                              size_t i1, const ImuConfig& imu);
+
 // The window over frames a < m < b, expressed in the frame of the submap whose odometry pose is
 // T_odom_submap. samples: on the LiDAR's clock, in the IMU frame, stamps increasing. Empty when the
 // samples do not cover the window.
