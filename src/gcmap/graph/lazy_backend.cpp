@@ -30,6 +30,32 @@ double model_error(const FactorLinearization& lin, const Vector12d& d) {
   return lin.error + 2.0 * lin.b.dot(d) + d.dot(lin.H * d);
 }
 
+// The kept model at the current poses. A two-pose factor's model is one of its relative pose (the
+// first pose's block, whose Jacobian is the identity), turned onto the second pose by the relative
+// pose's Jacobian at the current poses, -Ad(T_rel^-1). The kept Jacobian, of the relative pose as it
+// was, would leave a force on any motion both poses share, growing with their distance from the
+// origin: enough to turn a map that gravity alone holds level.
+FactorLinearization carried(const Factor& f, const FactorPoses& poses, const Vector12d& d) {
+  const FactorLinearization& kept = f.kept->lin;
+  FactorLinearization out;
+  out.error = model_error(kept, d);
+  if (f.num_keys() == 1) {
+    out.H = kept.H;
+    out.b = kept.b + kept.H * d;
+    return out;
+  }
+  const Matrix6d H = kept.H.topLeftCorner<6, 6>();
+  const Vector6d b = kept.b.head<6>() + H * d.head<6>();
+  const Matrix6d J1 = -adjoint(poses[0]->inverse() * *poses[1]);
+  out.H.topLeftCorner<6, 6>() = H;
+  out.H.topRightCorner<6, 6>() = H * J1;
+  out.H.bottomLeftCorner<6, 6>() = J1.transpose() * H;
+  out.H.bottomRightCorner<6, 6>() = J1.transpose() * H * J1;
+  out.b.head<6>() = b;
+  out.b.tail<6>() = J1.transpose() * b;
+  return out;
+}
+
 }  // namespace
 
 LazyBackend::LazyBackend(std::shared_ptr<LinearizationBackend> inner, double threshold)
@@ -86,11 +112,7 @@ void LazyBackend::linearize(std::span<Factor* const> factors, std::span<const Fa
     factor.kept = Factor::Kept{{*at[0], factor.num_keys() > 1 ? *at[1] : *at[0]}, sub_lin_[i]};
   });
   tbb::parallel_for(size_t{0}, n, [&](size_t f) {
-    if (!modelled_[f]) return;
-    const FactorLinearization& kept = factors[f]->kept->lin;
-    out[f].H = kept.H;
-    out[f].b = kept.b + kept.H * d[f];
-    out[f].error = model_error(kept, d[f]);
+    if (modelled_[f]) out[f] = carried(*factors[f], poses[f], d[f]);
   });
   linearized_ += subset_.size();
   reused_ += n - subset_.size();
