@@ -81,10 +81,34 @@ TEST(InertialDrive, AHandheldWalkNeedsNoPredictionWithTheImu) {
   std::printf("handheld: odometry failures %.0f / %.0f, ATE %.3f / %.3f m (LiDAR only / with the IMU)\n", failures[0], failures[1],
               ate[0], ate[1]);
   EXPECT_GT(failures[0], 20.0);
-  EXPECT_EQ(failures[1], 0.0);
+  // At most the one of the start (frame 20 on imu.accel_noise 0.1, none on 0.02): the state is found
+  // from the first second of registrations, which the walk makes 0.1-0.5 m off per frame.
+  EXPECT_LE(failures[1], 1.0);
   EXPECT_GE(ate[1], 0.0);
   EXPECT_LT(ate[1], 0.3);
   EXPECT_GT(ate[0], 1.0);
+}
+
+TEST(InertialDrive, AWalkWhoseRegistrationJumpsKeepsTheStateListening) {
+  // Seed 2's walk: from frame 318 on, the state's velocity, held by an accelerometer taken at the
+  // sensor's own density (imu.accel_noise 0.02), stopped following the registrations, and the run
+  // diverged (measured on 420 frames: 20 failures, ATE 3.89 m; the whole walk 331 failures). On
+  // the default 0.1: 1 failure, ATE 0.24 m.
+  TempDir dir;
+  const CliRun sim = run_gcmap("simulate -o " + dir / "walk" + " --scenario handheld --frames 420 --seed 2 --imu");
+  ASSERT_EQ(sim.code, 0) << sim.err;
+  const std::string out = dir / "map";
+  const CliRun r = run_gcmap("map " + dir / "walk" + " -o " + out + " --quiet --no-render");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const double failures = number_after(slurp(out + "/stats.json"), "\"odometry_failures\":");
+  const CliRun eval = run_gcmap("eval --gt " + dir / "walk/poses.txt" + " --est " + out + "/trajectory.kitti");
+  ASSERT_EQ(eval.code, 0) << eval.err;
+  const double ate = number_after(eval.out, "\"ate_m\":\\{\"rmse\":");
+  std::printf("seed 2's walk: %.0f odometry failures, ATE %.3f m\n", failures, ate);
+  EXPECT_GE(failures, 0.0);
+  EXPECT_LE(failures, 3.0);
+  EXPECT_GE(ate, 0.0);
+  EXPECT_LT(ate, 0.5);
 }
 
 }  // namespace

@@ -315,9 +315,10 @@ void visit_imu(Config& c, Visitor& v) {
            "Gyro white noise density (default: a MEMS IMU built into a LiDAR, inflated for vibration). A sweep takes the gyro's "
            "change of the turn rate only as far as it stands above this noise."});
   v("imu", "accel_noise", c.imu.noise.accel_noise,
-    KeyDoc{"m/s^2/sqrt(Hz)", 0, 10, "mapping/",
-           "Accelerometer white noise density (default: a MEMS IMU built into a LiDAR, inflated for vibration); part of the "
-           "weight of each gravity window (level_map)."});
+    KeyDoc{"m/s^2/sqrt(Hz)", 0, 10, "odometry/",
+           "Accelerometer white noise density as the estimation takes it: five times a MEMS IMU's built into a LiDAR, so that "
+           "the LiDAR-inertial state's velocity keeps listening to the registration (a walk diverged with the sensor's 0.02); "
+           "also part of the weight of each gravity window (level_map)."});
   v("imu", "inertial_odometry", c.imu.inertial_odometry,
     KeyDoc{"-", 0, 0, "odometry/",
            "Pose, velocity and biases estimated at every sweep from the IMU and the registration (a two-sweep fixed-lag "
