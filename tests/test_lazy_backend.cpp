@@ -145,7 +145,7 @@ TEST(LazyBackend, AKeptModelFeelsNoForceFromAMotionBothPosesShare) {
   const double scale = reused.b.head<6>().norm() * (T1_moved.translation().norm() + 1.0);
   const Vector6d force = shared_motion_force(reused, T1_moved, T0_moved);
   EXPECT_LT(force.norm(), 1e-9 * scale) << force.transpose();
-  // The same model's energy: the blocks are those of the relative pose, whatever the shared motion.
+  // The factor linearized afresh there feels none either.
   FactorLinearization fresh;
   CpuBackend().linearize(factors, at1, {&fresh, 1});
   EXPECT_LT(shared_motion_force(fresh, T1_moved, T0_moved).norm(), 1e-6 * scale);

@@ -4,8 +4,9 @@
 // when its relative pose moved more than `threshold` since (the norm of the change's log over
 // [rotation rad, translation m], as iSAM2's relinearizeThreshold); until then its blocks are that
 // quadratic model of the relative pose carried to the current poses (through the relative pose's
-// Jacobian there, so that a motion both poses share stays free), and its trial errors are the model's. Threshold 0
-// re-linearizes every factor whose poses moved at all: the same result as always re-linearizing.
+// Jacobian there, so that a motion both poses share stays free), and its trial errors are the
+// model's. Threshold 0 re-linearizes every factor whose poses moved at all: the same result as
+// always re-linearizing.
 // A budget bounds the work of one call: at most that many moved factors are linearized anew, those
 // that moved most first, and the others stay models until a later call.
 #include <memory>
