@@ -60,6 +60,15 @@ Vector9d ImuFactor::residual(const NavState& i, const NavState& j, Eigen::Matrix
   return r;
 }
 
+Eigen::Matrix<double, 9, 3> ImuFactor::gravity_jacobian(const NavState& i) const {
+  const Eigen::Matrix3d Rt = i.T_world_imu.linear().transpose();
+  const double dt = pre_.dt();
+  Eigen::Matrix<double, 9, 3> J = Eigen::Matrix<double, 9, 3>::Zero();
+  J.middleRows<3>(3) = -dt * Rt;
+  J.bottomRows<3>() = -0.5 * dt * dt * Rt;
+  return sqrt_information_ * J;
+}
+
 NavLinearization ImuFactor::linearize(const NavState* const* states) const {
   Eigen::Matrix<double, 9, 15> J_i, J_j;
   NavLinearization out;
@@ -122,8 +131,7 @@ NavLinearization LidarPoseFactor::linearize(const NavState* const* states) const
   return out;
 }
 
-namespace {
-double total_error(const std::vector<std::unique_ptr<NavFactor>>& factors, const std::vector<NavState>& states) {
+double nav_error(const std::vector<std::unique_ptr<NavFactor>>& factors, const std::vector<NavState>& states) {
   double e = 0.0;
   for (const auto& f : factors) {
     const NavState* s[2] = {&states[f->keys()[0]], f->num_keys() > 1 ? &states[f->keys()[1]] : nullptr};
@@ -132,9 +140,8 @@ double total_error(const std::vector<std::unique_ptr<NavFactor>>& factors, const
   return e;
 }
 
-// Gauss-Newton system H d = -b over all states.
-void build_system(const std::vector<std::unique_ptr<NavFactor>>& factors, const std::vector<NavState>& states, Eigen::MatrixXd& H,
-                  Eigen::VectorXd& b) {
+void nav_system(const std::vector<std::unique_ptr<NavFactor>>& factors, const std::vector<NavState>& states, Eigen::MatrixXd& H,
+                Eigen::VectorXd& b) {
   const int n = static_cast<int>(states.size()) * 15;
   H = Eigen::MatrixXd::Zero(n, n);
   b = Eigen::VectorXd::Zero(n);
@@ -148,12 +155,11 @@ void build_system(const std::vector<std::unique_ptr<NavFactor>>& factors, const 
     }
   }
 }
-}  // namespace
 
 Eigen::MatrixXd nav_information(const std::vector<std::unique_ptr<NavFactor>>& factors, const std::vector<NavState>& states) {
   Eigen::MatrixXd H;
   Eigen::VectorXd b;
-  build_system(factors, states, H, b);
+  nav_system(factors, states, H, b);
   return H;
 }
 
@@ -164,11 +170,11 @@ NavOptimizationResult optimize_nav_states(const std::vector<std::unique_ptr<NavF
       if (f->keys()[k] < 0 || f->keys()[k] >= static_cast<int>(states.size()))
         throw Error("an IMU factor references state " + std::to_string(f->keys()[k]) + ", which has no value");
   NavOptimizationResult result;
-  double error = result.initial_error = total_error(factors, states), lambda = 1e-6;
+  double error = result.initial_error = nav_error(factors, states), lambda = 1e-6;
   Eigen::MatrixXd H;
   Eigen::VectorXd b;
   for (; result.iterations < max_iterations && !result.converged; ++result.iterations) {
-    build_system(factors, states, H, b);
+    nav_system(factors, states, H, b);
     bool accepted = false;
     for (; lambda < 1e10 && !accepted; lambda *= 10.0) {
       Eigen::MatrixXd A = H;
@@ -176,7 +182,7 @@ NavOptimizationResult optimize_nav_states(const std::vector<std::unique_ptr<NavF
       const Eigen::VectorXd d = A.ldlt().solve(-b);
       std::vector<NavState> moved(states.size());
       for (size_t s = 0; s < states.size(); ++s) moved[s] = states[s].retract(d.segment<15>(15 * s));
-      const double e = total_error(factors, moved);
+      const double e = nav_error(factors, moved);
       if (!(e < error)) continue;
       result.converged = error - e < 1e-10 * std::max(error, 1e-12) || d.lpNorm<Eigen::Infinity>() < 1e-10;
       states = std::move(moved), error = e, accepted = true;

@@ -44,6 +44,10 @@ class ImuFactor : public NavFactor {
   Vector9d residual(const NavState& i, const NavState& j, Eigen::Matrix<double, 9, 15>* J_i = nullptr,
                     Eigen::Matrix<double, 9, 15>* J_j = nullptr) const;
   const ImuPreintegration& preintegration() const { return pre_; }
+  // Gravity as an unknown (odometry/inertial_track.hpp estimates its direction): the whitened
+  // residual's derivative by the gravity vector, which enters linearly.
+  Eigen::Matrix<double, 9, 3> gravity_jacobian(const NavState& i) const;
+  void set_gravity(const Eigen::Vector3d& gravity) { gravity_ = gravity; }
 
  private:
   ImuPreintegration pre_;
@@ -80,7 +84,8 @@ class NavPriorFactor : public NavFactor {
 // translation], whitened by the square root of its 6x6 information.
 class LidarPoseFactor : public NavFactor {
  public:
-  LidarPoseFactor(int key, const Eigen::Isometry3d& T_world_lidar, const Matrix6d& information, const Eigen::Isometry3d& T_imu_lidar);
+  LidarPoseFactor(int key, const Eigen::Isometry3d& T_world_lidar, const Matrix6d& information,
+                  const Eigen::Isometry3d& T_imu_lidar);
   int num_keys() const override { return 1; }
   NavLinearization linearize(const NavState* const* states) const override;
 
@@ -99,6 +104,10 @@ struct NavOptimizationResult {
 // Throws Error when a factor references a missing state.
 NavOptimizationResult optimize_nav_states(const std::vector<std::unique_ptr<NavFactor>>& factors, std::vector<NavState>& states,
                                           int max_iterations = 50);
+// The Gauss-Newton system H d = -b (H = J^T J, b = J^T r) of all states at their values, 15 rows per state.
+void nav_system(const std::vector<std::unique_ptr<NavFactor>>& factors, const std::vector<NavState>& states, Eigen::MatrixXd& H,
+                Eigen::VectorXd& b);
+double nav_error(const std::vector<std::unique_ptr<NavFactor>>& factors, const std::vector<NavState>& states);
 // The Gauss-Newton information (J^T J) of all states at their values, 15 rows per state.
 Eigen::MatrixXd nav_information(const std::vector<std::unique_ptr<NavFactor>>& factors, const std::vector<NavState>& states);
 

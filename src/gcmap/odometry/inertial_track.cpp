@@ -24,6 +24,126 @@ constexpr double kStartRotation = 0.002, kStartPosition = 0.01, kStartVelocity =
 // are not. A quarter of it weighed the registrations of a 64-beam drive and of a handheld
 // Mid-360-like sensor both about right against the IMU (docs/benchmarks.md).
 constexpr double kHessianScale = 0.25;
+// Gravity's direction in the odometry frame: known to this at the start (rad, a gravity window over
+// a second of registered sweeps) and wandering by this (rad/sqrt(s)) as the odometry's roll and
+// pitch do. Walks of 0, 0.001 and 0.003 did alike on the vehicles' drives; 0.001 mapped the
+// simulated walks best (docs/benchmarks.md, "Gravity's direction in the state").
+constexpr double kStartGravityTilt = 0.02, kGravityWalk = 0.001;
+
+using Matrix17d = Eigen::Matrix<double, 17, 17>;
+using Vector17d = Eigen::Matrix<double, 17, 1>;
+
+// Gravity's direction as two angles about axes across a reference gravity.
+struct GravityTilt {
+  Eigen::Vector3d reference;
+  Eigen::Matrix<double, 3, 2> axes;
+  explicit GravityTilt(const Eigen::Vector3d& g) : reference(g) {
+    const Eigen::Vector3d u = g.normalized();
+    const Eigen::Vector3d a = (std::abs(u.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY()).cross(u).normalized();
+    axes << a, u.cross(a);
+  }
+  Eigen::Vector3d at(const Eigen::Vector2d& theta) const { return so3_exp(axes * theta) * reference; }
+  Eigen::Matrix<double, 3, 2> jacobian(const Eigen::Vector2d& theta) const { return -skew(at(theta)) * axes; }
+};
+
+bool constrains_every_translation(const Matrix6d& information) {
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(information.bottomRightCorner<3, 3>());
+  return eig.eigenvalues()(0) > 1e-6 * eig.eigenvalues()(2);
+}
+
+// The smoother's window: the older state (0) under its prior, the newer one (1), and gravity's tilt.
+// Unknowns ordered [tilt (2), state 0 (15), state 1 (15)].
+struct Window {
+  std::vector<std::unique_ptr<NavFactor>> factors;  // over the states
+  ImuFactor* imu = nullptr;                         // among them: the one gravity enters
+  NavState prior;
+  Matrix17d prior_information;  // over [tilt, state 0]
+  GravityTilt tilt;
+  bool tilt_free = true;  // false: the tilt is held at its prior
+
+  // [tilt; state 0 against the prior], unwhitened, and its Jacobian.
+  Vector17d prior_residual(const NavState& s0, const Eigen::Vector2d& theta, Matrix17d* J) const {
+    const NavPriorFactor f(0, prior, Matrix15d::Identity());
+    const NavState* s[2] = {&s0, nullptr};
+    const NavLinearization lin = f.linearize(s);
+    if (J) J->setIdentity(), J->bottomRightCorner<15, 15>() = lin.J[0];
+    return (Vector17d() << theta, lin.r).finished();
+  }
+  double error(const std::vector<NavState>& states, const Eigen::Vector2d& theta) const {
+    imu->set_gravity(tilt.at(theta));
+    const Vector17d r = prior_residual(states[0], theta, nullptr);
+    return nav_error(factors, states) + r.dot(prior_information * r);
+  }
+  void system(const std::vector<NavState>& states, const Eigen::Vector2d& theta, Eigen::MatrixXd& H, Eigen::VectorXd& b) const;
+};
+
+void Window::system(const std::vector<NavState>& states, const Eigen::Vector2d& theta, Eigen::MatrixXd& H,
+                    Eigen::VectorXd& b) const {
+  imu->set_gravity(tilt.at(theta));
+  Eigen::MatrixXd H_states;
+  Eigen::VectorXd b_states;
+  nav_system(factors, states, H_states, b_states);
+  H = Eigen::MatrixXd::Zero(32, 32), b = Eigen::VectorXd::Zero(32);
+  H.bottomRightCorner<30, 30>() = H_states, b.tail<30>() = b_states;
+  const NavState* s[2] = {&states[0], &states[1]};
+  const NavLinearization lin = imu->linearize(s);
+  const Eigen::Matrix<double, 9, 2> Jg =
+      tilt_free ? Eigen::Matrix<double, 9, 2>(imu->gravity_jacobian(states[0]) * tilt.jacobian(theta))
+                : Eigen::Matrix<double, 9, 2>::Zero();
+  H.topLeftCorner<2, 2>() += Jg.transpose() * Jg;
+  H.block<2, 15>(0, 2) += Jg.transpose() * lin.J[0];
+  H.block<2, 15>(0, 17) += Jg.transpose() * lin.J[1];
+  H.block<30, 2>(2, 0) = H.block<2, 30>(0, 2).transpose();
+  b.head<2>() += Jg.transpose() * lin.r;
+  Matrix17d J;
+  const Vector17d r = prior_residual(states[0], theta, &J);
+  H.topLeftCorner<17, 17>() += J.transpose() * prior_information * J;
+  b.head<17>() += J.transpose() * prior_information * r;
+}
+
+// Levenberg-Marquardt over the window's states and tilt.
+void optimize(const Window& w, std::vector<NavState>& states, Eigen::Vector2d& theta, int max_iterations) {
+  double error = w.error(states, theta), lambda = 1e-6;
+  Eigen::MatrixXd H;
+  Eigen::VectorXd b;
+  for (int it = 0; it < max_iterations; ++it) {
+    w.system(states, theta, H, b);
+    bool accepted = false;
+    for (; lambda < 1e10 && !accepted; lambda *= 10.0) {
+      Eigen::MatrixXd A = H;
+      A.diagonal() += lambda * H.diagonal().cwiseMax(1e-9);
+      const Eigen::VectorXd d = A.ldlt().solve(-b);
+      std::vector<NavState> moved{states[0].retract(d.segment<15>(2)), states[1].retract(d.tail<15>())};
+      const Eigen::Vector2d moved_theta = theta + d.head<2>();
+      const double e = w.error(moved, moved_theta);
+      if (!(e < error)) continue;
+      const bool converged = error - e < 1e-10 * std::max(error, 1e-12) || d.lpNorm<Eigen::Infinity>() < 1e-10;
+      states = std::move(moved), theta = moved_theta, error = e, accepted = true;
+      lambda = std::max(lambda / 100.0, 1e-12);
+      if (converged) return;
+    }
+    if (!accepted) return;  // no step lowers the error: at a minimum
+  }
+}
+
+// The information over [tilt, state 1] once state 0 is marginalized (Schur complement), the tilt
+// then left to wander for dt seconds (its covariance grows by walk^2 dt: Woodbury, 2x2).
+Matrix17d marginalized(const Eigen::MatrixXd& H, double dt, bool walk) {
+  std::vector<int> keep{0, 1}, drop;
+  for (int k = 2; k < 17; ++k) drop.push_back(k);
+  for (int k = 17; k < 32; ++k) keep.push_back(k);
+  const Eigen::MatrixXd Hkk = H(keep, keep), Hkd = H(keep, drop), Hdd = H(drop, drop);
+  Matrix17d L = Hkk - Hkd * Hdd.ldlt().solve(Hkd.transpose());
+  L = 0.5 * (L + L.transpose()) + 1e-9 * Matrix17d::Identity();
+  const double q = walk ? kGravityWalk * kGravityWalk * dt : 0.0;
+  if (q > 0.0) {
+    const Eigen::Matrix<double, 17, 2> LE = L.leftCols<2>();
+    const Eigen::Matrix2d inner = Eigen::Matrix2d::Identity() / q + L.topLeftCorner<2, 2>();
+    L -= LE * inner.ldlt().solve(LE.transpose());
+    L = 0.5 * (L + L.transpose());
+  }
+  return L;
+}
 }  // namespace
 
 Matrix6d registration_information(const Matrix6d& hessian) {
@@ -83,8 +203,8 @@ void InertialTrack::observe(double time, const Eigen::Isometry3d& T_world_lidar,
   }
   // Samples before what can still be needed go (in blocks: the vector shifts).
   const double keep = state_ ? state_time_ : (start_.empty() ? time : start_.front().stamp);
-  const auto first = std::lower_bound(samples_.begin(), samples_.end(), keep - 0.1,
-                                      [](const ImuSample& s, double t) { return s.stamp < t; });
+  const auto first =
+      std::lower_bound(samples_.begin(), samples_.end(), keep - 0.1, [](const ImuSample& s, double t) { return s.stamp < t; });
   if (first - samples_.begin() > 1000) samples_.erase(samples_.begin(), first);
 }
 
@@ -113,9 +233,10 @@ bool InertialTrack::initialize() {
   s.velocity = v_m + gravity_ * T2 + mb.V;
   state_ = s;
   state_time_ = start_[b].stamp;
-  Vector15d sigma;
-  sigma << Eigen::Vector3d::Constant(kStartRotation), Eigen::Vector3d::Constant(kStartPosition),
-      Eigen::Vector3d::Constant(kStartVelocity), Eigen::Vector3d::Constant(kStartGyroBias), Eigen::Vector3d::Constant(kStartAccelBias);
+  Vector17d sigma;
+  sigma << Eigen::Vector2d::Constant(kStartGravityTilt), Eigen::Vector3d::Constant(kStartRotation),
+      Eigen::Vector3d::Constant(kStartPosition), Eigen::Vector3d::Constant(kStartVelocity),
+      Eigen::Vector3d::Constant(kStartGyroBias), Eigen::Vector3d::Constant(kStartAccelBias);
   information_ = sigma.cwiseInverse().cwiseAbs2().asDiagonal();
   return true;
 }
@@ -123,17 +244,24 @@ bool InertialTrack::initialize() {
 void InertialTrack::update(double time, const Eigen::Isometry3d* T_world_lidar, const Matrix6d* information) {
   ImuPreintegration pre(state_->bias, config_.noise);
   pre.integrate(samples_, state_time_, time);
+  const double dt = pre.dt();
   std::vector<NavState> states{*state_, pre.predict(*state_, gravity_)};
-  std::vector<std::unique_ptr<NavFactor>> factors;
-  factors.push_back(std::make_unique<NavPriorFactor>(0, *state_, information_));
-  factors.push_back(std::make_unique<BiasRandomWalkFactor>(0, 1, pre.dt(), config_.noise));
-  factors.push_back(std::make_unique<ImuFactor>(0, 1, std::move(pre), gravity_));
-  if (T_world_lidar) factors.push_back(std::make_unique<LidarPoseFactor>(1, *T_world_lidar, *information, T_imu_lidar_));
-  optimize_nav_states(factors, states, 10);
-  // The older state marginalized (Schur complement): its information passes to the newer one.
-  const Eigen::MatrixXd H = nav_information(factors, states);
-  const Matrix15d H_new = H.bottomRightCorner<15, 15>() - H.block<15, 15>(15, 0) * H.topLeftCorner<15, 15>().ldlt().solve(H.block<15, 15>(0, 15));
-  information_ = 0.5 * (H_new + H_new.transpose()) + 1e-9 * Matrix15d::Identity();
+  // Where the registration leaves a translation unknown (a tunnel's axis), a tilt of gravity along
+  // it is a forward acceleration: the tilt is held.
+  const bool tilt_free = T_world_lidar && constrains_every_translation(*information);
+  Window w{{}, nullptr, *state_, information_, GravityTilt(gravity_), tilt_free};
+  w.factors.push_back(std::make_unique<BiasRandomWalkFactor>(0, 1, dt, config_.noise));
+  auto imu = std::make_unique<ImuFactor>(0, 1, std::move(pre), gravity_);
+  w.imu = imu.get();
+  w.factors.push_back(std::move(imu));
+  if (T_world_lidar) w.factors.push_back(std::make_unique<LidarPoseFactor>(1, *T_world_lidar, *information, T_imu_lidar_));
+  Eigen::Vector2d theta = Eigen::Vector2d::Zero();
+  optimize(w, states, theta, 10);
+  Eigen::MatrixXd H;
+  Eigen::VectorXd b;
+  w.system(states, theta, H, b);
+  information_ = marginalized(H, dt, tilt_free);
+  gravity_ = w.tilt.at(theta);
   state_ = states[1];
   state_time_ = time;
   last_bias_ = state_->bias;

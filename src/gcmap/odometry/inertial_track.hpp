@@ -4,8 +4,10 @@
 // prior) from a preintegrated IMU factor, the bias random walk and the registration's pose weighted
 // by its Hessian. It predicts where the next sweep starts, translation included; its pose is the
 // frame's, so the IMU carries what a registration cannot see (a tunnel) or place (a fast turn).
-// Gravity is found in the odometry's own frame (the first scan's) from the first registered second:
-// the map frame is unchanged.
+// Gravity is found in the odometry's own frame (the first scan's) from the first registered second
+// (the map frame is unchanged), and its direction stays an unknown of the smoother: the
+// odometry's roll and pitch wander from the first scan's, and gravity held fixed in its frame would
+// read each wander as an acceleration.
 #include <Eigen/Geometry>
 #include <optional>
 #include <vector>
@@ -39,8 +41,8 @@ class InertialTrack {
   void reset();
 
   bool ready() const { return state_.has_value(); }
-  const NavState& state() const { return *state_; }                  // when ready
-  const Eigen::Vector3d& gravity() const { return gravity_; }        // odometry frame, m/s^2
+  const NavState& state() const { return *state_; }            // when ready
+  const Eigen::Vector3d& gravity() const { return gravity_; }  // odometry frame, m/s^2
   const Eigen::Isometry3d& T_imu_lidar() const { return T_imu_lidar_; }
   // The biases of the last state there was (kept through a reset), for the report.
   const std::optional<ImuBias>& last_bias() const { return last_bias_; }
@@ -54,11 +56,12 @@ class InertialTrack {
 
   ImuConfig config_;
   Eigen::Isometry3d T_imu_lidar_;
-  std::vector<ImuSample> samples_;  // LiDAR clock, IMU frame
+  std::vector<ImuSample> samples_;    // LiDAR clock, IMU frame
   std::vector<OdometryFrame> start_;  // registered in a row, until the state is known
   std::optional<NavState> state_;
   double state_time_ = 0.0;
-  Matrix15d information_ = Matrix15d::Zero();  // of state_
+  // Of [gravity tilt (2: about two axes across gravity_), state_ (15)].
+  Eigen::Matrix<double, 17, 17> information_ = Eigen::Matrix<double, 17, 17>::Zero();
   Eigen::Vector3d gravity_ = Eigen::Vector3d::Zero();
   std::optional<ImuBias> last_bias_;
 };
