@@ -89,6 +89,27 @@ TEST(InertialDrive, AHandheldWalkNeedsNoPredictionWithTheImu) {
   EXPECT_GT(ate[0], 1.0);
 }
 
+TEST(InertialDrive, AWalkWithoutPointTimesTakesTheStatesPoses) {
+  // The walk's scans mapped as if they had no point times (not deskewed): each is registered from
+  // the state's prediction and placed where the state puts it, as a deskewed sweep is. Measured:
+  // 8 failures, ATE 0.190 m; placed at their registrations instead, 16 failures and 0.255 m.
+  TempDir dir;
+  const CliRun sim = run_gcmap("simulate -o " + dir / "walk" + " --scenario handheld --frames 300 --imu");
+  ASSERT_EQ(sim.code, 0) << sim.err;
+  const std::string out = dir / "map";
+  const CliRun r = run_gcmap("map " + dir / "walk" + " -o " + out + " --quiet --no-render --no-deskew");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const double failures = number_after(slurp(out + "/stats.json"), "\"odometry_failures\":");
+  const CliRun eval = run_gcmap("eval --gt " + dir / "walk/poses.txt" + " --est " + out + "/trajectory.kitti");
+  ASSERT_EQ(eval.code, 0) << eval.err;
+  const double ate = number_after(eval.out, "\"ate_m\":\\{\"rmse\":");
+  std::printf("the walk without point times: %.0f odometry failures, ATE %.3f m\n", failures, ate);
+  EXPECT_GE(failures, 0.0);
+  EXPECT_LE(failures, 12.0);
+  EXPECT_GE(ate, 0.0);
+  EXPECT_LT(ate, 0.23);
+}
+
 TEST(InertialDrive, AWalkWhoseRegistrationJumpsKeepsTheStateListening) {
   // Seed 2's walk: from frame 318 on, the state's velocity, held by an accelerometer taken at the
   // sensor's own density (imu.accel_noise 0.02), stopped following the registrations, and the run

@@ -134,7 +134,8 @@ void SweepOdometry::observe_gyro(const SweepReference& reference) {
   if (!gyro_references_.empty()) {
     const SweepReference& last = gyro_references_.back();
     const double span = reference.stamp - last.stamp;
-    if (span > 0.025) gyro_.compare_rate(last.stamp, reference.stamp, so3_log(last.pose.linear().transpose() * reference.pose.linear()) / span);
+    if (span > 0.025)
+      gyro_.compare_rate(last.stamp, reference.stamp, so3_log(last.pose.linear().transpose() * reference.pose.linear()) / span);
     if (gyro_.disagrees()) gyro_rejected_at_ = frames_;
   }
   gyro_references_.push_back(reference);
@@ -163,6 +164,8 @@ SweepEstimate SweepOdometry::track(const std::shared_ptr<PointCloud>& cloud, dou
   } else if (!timed || !odometry_.has_model() || cloud->size() < 100 || !cloud->has_covs()) {
     const bool starts_model = !odometry_.has_model();
     const std::optional<Eigen::Isometry3d> guess = inertial_guess(stamp);
+    if (guess && !starts_model && cloud && cloud->size() >= 100 && cloud->has_covs())
+      return finish(track_fused(cloud, stamp, *guess), stamp);
     e.T_world_frame = odometry_.track(cloud, stamp, nullptr, guess);
     e.inertial = guess.has_value();
     e.failed = odometry_.last_failed();
@@ -174,11 +177,28 @@ SweepEstimate SweepOdometry::track(const std::shared_ptr<PointCloud>& cloud, dou
   } else {
     e = track_deskewed(cloud, stamp, dt);
   }
-  if (!e.deskewed || T_odom) previous_mean_.reset(), before_previous_.reset(), previous_.reset(), gyro_references_.clear();
+  if (T_odom) previous_mean_.reset(), before_previous_.reset(), previous_.reset(), gyro_references_.clear();
+  return finish(std::move(e), stamp);
+}
+
+SweepEstimate SweepOdometry::finish(SweepEstimate e, double stamp) {
+  if (!e.deskewed) previous_mean_.reset(), before_previous_.reset(), previous_.reset(), gyro_references_.clear();
   if (first_ && frames_ > first_->frame) first_.reset();  // only the next frame restarts
   e.lost = e.failed && !odometry_.has_model();
   last_.emplace(e.T_world_frame, stamp);
   ++frames_;
+  return e;
+}
+
+SweepEstimate SweepOdometry::track_fused(const std::shared_ptr<PointCloud>& cloud, double stamp, const Eigen::Isometry3d& guess) {
+  SweepEstimate e;
+  e.inertial = true;
+  Eigen::Isometry3d T = odometry_.estimate(*cloud, guess, Odometry::Guess::steady, &e.failed, &e.quality);
+  // The scan's pose is taken at its stamp: without point times nothing tells a mean time.
+  if (const auto fused = observe_inertial(e, {T, stamp})) T = *fused;
+  odometry_.accept(cloud, T, stamp, e.failed, e.quality);
+  reference_ = {T, stamp};
+  e.T_world_frame = T;
   return e;
 }
 
@@ -294,7 +314,7 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
 }
 
 std::optional<SweepOdometry::MeanVelocity> SweepOdometry::registered_mean(const Eigen::Isometry3d& T_world_mean, double time,
-                                                                         bool degenerate) const {
+                                                                          bool degenerate) const {
   const auto since = [&](const SweepReference& from) -> std::optional<MeanVelocity> {
     const double span = time - from.stamp;
     if (span <= 1e-6) return std::nullopt;

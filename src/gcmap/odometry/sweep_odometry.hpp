@@ -63,6 +63,11 @@ class SweepOdometry {
 
  private:
   SweepEstimate track_deskewed(const std::shared_ptr<PointCloud>& cloud, double stamp, double dt);
+  // A scan without point times, where the LiDAR-inertial state predicts it: registered from the
+  // prediction and placed at the state's pose, as a deskewed sweep is.
+  SweepEstimate track_fused(const std::shared_ptr<PointCloud>& cloud, double stamp, const Eigen::Isometry3d& guess);
+  // What every frame ends with: the motion's history kept or dropped, the frame counted.
+  SweepEstimate finish(SweepEstimate e, double stamp);
   // The IMU-propagated pose at `stamp`, when the inertial state is known and trusted.
   std::optional<Eigen::Isometry3d> inertial_guess(double stamp) const;
 
