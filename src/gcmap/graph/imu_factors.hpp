@@ -107,6 +107,7 @@ NavOptimizationResult optimize_nav_states(const std::vector<std::unique_ptr<NavF
 // The Gauss-Newton system H d = -b (H = J^T J, b = J^T r) of all states at their values, 15 rows per state.
 void nav_system(const std::vector<std::unique_ptr<NavFactor>>& factors, const std::vector<NavState>& states, Eigen::MatrixXd& H,
                 Eigen::VectorXd& b);
+// The sum of the factors' squared whitened residuals.
 double nav_error(const std::vector<std::unique_ptr<NavFactor>>& factors, const std::vector<NavState>& states);
 // The Gauss-Newton information (J^T J) of all states at their values, 15 rows per state.
 Eigen::MatrixXd nav_information(const std::vector<std::unique_ptr<NavFactor>>& factors, const std::vector<NavState>& states);
