@@ -106,6 +106,8 @@ TEST(InertialTrack, FollowsTheOdometrysWanderingTilt) {
   const Eigen::Vector3d seen = tilt(8.0) * rig.T_world_odom.linear().transpose() * gravity_vector();
   const double off = std::acos(std::clamp(track.gravity().normalized().dot(seen.normalized()), -1.0, 1.0));
   EXPECT_LT(off * 180.0 / M_PI, 0.5);
+  ASSERT_TRUE(track.last_gravity_turn_deg());
+  EXPECT_NEAR(*track.last_gravity_turn_deg(), 2.0, 0.5) << "reported";
 }
 
 TEST(InertialTrack, StartsAgainAfterAReset) {

@@ -189,8 +189,12 @@ std::string imu_line(const PipelineStats& s, double configured_offset) {
   line += fmt::format("; the LiDAR-inertial state predicted {} sweeps", s.inertial_predicted);
   if (s.inertial_bias) {
     const Eigen::Vector3d bg = s.inertial_bias->gyro * 180.0 / M_PI, ba = s.inertial_bias->accel;
-    line += fmt::format(" (its biases at the end: gyro ({:.4f}, {:.4f}, {:.4f}) deg/s, accelerometer ({:.3f}, {:.3f}, {:.3f}) m/s^2)",
+    line += fmt::format(" (its biases at the end: gyro ({:.4f}, {:.4f}, {:.4f}) deg/s, accelerometer ({:.3f}, {:.3f}, {:.3f}) m/s^2",
                         bg.x(), bg.y(), bg.z(), ba.x(), ba.y(), ba.z());
+    if (s.inertial_gravity_turn_deg)
+      line += fmt::format("; its gravity {:.2f} deg from where its start found it, as the odometry's roll and pitch wandered",
+                          *s.inertial_gravity_turn_deg);
+    line += ")";
   }
   const GravityStats& g = s.gravity;
   if (g.levelled)

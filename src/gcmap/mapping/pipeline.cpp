@@ -200,6 +200,7 @@ PipelineStats MappingPipeline::stats() const {
   s.gyro_deskewed = gyro_deskewed_;
   s.inertial_predicted = inertial_predicted_;
   s.inertial_bias = odometry_.inertial_bias();
+  s.inertial_gravity_turn_deg = odometry_.inertial_gravity_turn_deg();
   s.gyro_bias = odometry_.gyro_bias();
   s.imu_clock = odometry_.imu_clock_check();
   s.gyro_rejected_at = odometry_.gyro_rejected_at();

@@ -44,16 +44,17 @@ struct Frame {
 
 struct PipelineStats {
   size_t frames = 0, unusable = 0;
-  size_t odometry_failures = 0;      // frames with Frame::odometry_failed
-  size_t imu_samples = 0;            // IMU samples given (add_imu)
-  size_t gyro_deskewed = 0;          // sweeps deskewed with the gyro's rotation
-  size_t inertial_predicted = 0;     // sweeps started from the LiDAR-inertial state (imu.inertial_odometry)
-  std::optional<ImuBias> inertial_bias;  // that state's biases at the end (IMU frame)
+  size_t odometry_failures = 0;                         // frames with Frame::odometry_failed
+  size_t imu_samples = 0;                               // IMU samples given (add_imu)
+  size_t gyro_deskewed = 0;                             // sweeps deskewed with the gyro's rotation
+  size_t inertial_predicted = 0;                        // sweeps started from the LiDAR-inertial state (imu.inertial_odometry)
+  std::optional<ImuBias> inertial_bias;                 // that state's biases at the end (IMU frame)
+  std::optional<double> inertial_gravity_turn_deg;      // how far its gravity turned from its start's
   Eigen::Vector3d gyro_bias = Eigen::Vector3d::Zero();  // rad/s, LiDAR frame, the last estimate
   std::optional<GyroTrack::ClockCheck> imu_clock;       // the gyro's rates against the registered ones
   std::optional<int> gyro_rejected_at;                  // see SweepOdometry::gyro_rejected_at
   GravityStats gravity;                                 // the accelerometer in the global graph
-  TimingStats preprocess, odometry;  // preprocess overlaps the other stages in run()
+  TimingStats preprocess, odometry;                     // preprocess overlaps the other stages in run()
   MapperStats mapper;
   double seconds = 0.0;  // from construction to finish()
 };
@@ -167,7 +168,7 @@ class MappingPipeline {
   size_t unusable_scans_ = 0, odometry_failures_ = 0, gyro_deskewed_ = 0, inertial_predicted_ = 0;  // track_frame's
   size_t imu_samples_ = 0;
   bool gyro_warned_ = false;
-  size_t unusable_frames_ = 0;                         // map_frame's
+  size_t unusable_frames_ = 0;  // map_frame's
   TimingStats preprocess_ms_, odometry_ms_;
   Stopwatch clock_;
   double seconds_ = 0.0;

@@ -95,6 +95,7 @@ Json stats_json(const MappingPipeline& pipeline) {
       imu["inertial_gyro_bias_rad_s"] = gyro;  // IMU frame, the LiDAR-inertial state's at the end
       imu["inertial_accel_bias_m_s2"] = accel;
     }
+    if (ps.inertial_gravity_turn_deg) imu["inertial_gravity_turned_deg"] = *ps.inertial_gravity_turn_deg;
     if (ps.imu_clock) {
       Json clock = Json::object();
       clock["best_shift_s"] = ps.imu_clock->best_shift;  // to add to imu.time_offset
@@ -110,7 +111,7 @@ Json stats_json(const MappingPipeline& pipeline) {
     gravity["levelled"] = g.levelled;  // the map's z is gravity's
     gravity["windows"] = g.windows;
     gravity["downweighted"] = g.downweighted;
-    gravity["accel_bias_m_s2"] = ab;  // IMU frame, the estimate at the end
+    gravity["accel_bias_m_s2"] = ab;           // IMU frame, the estimate at the end
     gravity["rms_tilt_deg"] = g.rms_tilt_deg;  // of the windows' up against the map's z
     imu["gravity"] = gravity;
     stats["imu"] = imu;

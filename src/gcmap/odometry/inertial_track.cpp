@@ -222,7 +222,7 @@ bool InertialTrack::initialize() {
   if (!window) return false;
   const Eigen::Vector3d g = window->gravity(Eigen::Vector3d::Zero());
   if (std::abs(g.norm() - config_.gravity) > kGravityTolerance * config_.gravity) return false;
-  gravity_ = g.normalized() * config_.gravity;
+  gravity_ = start_gravity_ = g.normalized() * config_.gravity;
   // The velocity over [m, b] from the positions there and what the specific force adds.
   const Eigen::Isometry3d T_lidar_imu = T_imu_lidar_.inverse();
   const auto p = [&](size_t k) { return Eigen::Vector3d(start_[k].T_odom_lidar * T_lidar_imu.translation()); };
@@ -265,6 +265,8 @@ void InertialTrack::update(double time, const Eigen::Isometry3d* T_world_lidar, 
   state_ = states[1];
   state_time_ = time;
   last_bias_ = state_->bias;
+  last_gravity_turn_deg_ =
+      std::acos(std::clamp(gravity_.normalized().dot(start_gravity_.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
 }
 
 }  // namespace gcmap

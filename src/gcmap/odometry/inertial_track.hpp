@@ -46,6 +46,9 @@ class InertialTrack {
   const Eigen::Isometry3d& T_imu_lidar() const { return T_imu_lidar_; }
   // The biases of the last state there was (kept through a reset), for the report.
   const std::optional<ImuBias>& last_bias() const { return last_bias_; }
+  // How far (deg) that state's gravity had turned from where its start found it: the odometry's
+  // roll and pitch wander, for the report.
+  const std::optional<double>& last_gravity_turn_deg() const { return last_gravity_turn_deg_; }
 
  private:
   bool covers(double t0, double t1) const;
@@ -62,8 +65,9 @@ class InertialTrack {
   double state_time_ = 0.0;
   // Of [gravity tilt (2: about two axes across gravity_), state_ (15)].
   Eigen::Matrix<double, 17, 17> information_ = Eigen::Matrix<double, 17, 17>::Zero();
-  Eigen::Vector3d gravity_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d gravity_ = Eigen::Vector3d::Zero(), start_gravity_ = Eigen::Vector3d::Zero();
   std::optional<ImuBias> last_bias_;
+  std::optional<double> last_gravity_turn_deg_;
 };
 
 }  // namespace gcmap

@@ -53,6 +53,9 @@ class SweepOdometry {
   std::optional<int> gyro_rejected_at() const { return gyro_rejected_at_; }
   // The LiDAR-inertial state's last biases (imu.inertial_odometry; IMU frame), once it was known.
   std::optional<ImuBias> inertial_bias() const { return inertial_enabled_ ? inertial_.last_bias() : std::nullopt; }
+  std::optional<double> inertial_gravity_turn_deg() const {
+    return inertial_enabled_ ? inertial_.last_gravity_turn_deg() : std::nullopt;
+  }
 
   // The pose of a prepared scan (null: unusable, placed by the prediction) at `stamp`, stamps
   // non-decreasing. A scan with per-point times is deskewed in place into the sensor frame at the
