@@ -28,6 +28,24 @@ double number_after(const std::string& text, const std::string& key) {
   return std::stod(m[1]);
 }
 
+// The simulated walk in folder `walk` mapped into `out` with `map_args`, and scored against its truth.
+struct WalkRun {
+  std::string stats;                   // stats.json
+  double failures = -1.0, ate = -1.0;  // odometry failures, trajectory ATE (m); -1 where a step failed
+};
+WalkRun map_walk(const std::string& walk, const std::string& out, const std::string& map_args) {
+  WalkRun w;
+  const CliRun r = run_gcmap("map " + walk + " -o " + out + " --quiet --no-render" + map_args);
+  EXPECT_EQ(r.code, 0) << r.err;
+  if (r.code != 0) return w;
+  w.stats = slurp(out + "/stats.json");
+  w.failures = number_after(w.stats, "\"odometry_failures\":");
+  const CliRun eval = run_gcmap("eval --gt " + walk + "/poses.txt --est " + out + "/trajectory.kitti");
+  EXPECT_EQ(eval.code, 0) << eval.err;
+  if (eval.code == 0) w.ate = number_after(eval.out, "\"ate_m\":\\{\"rmse\":");
+  return w;
+}
+
 TEST(InertialDrive, TheImuCarriesTheDriveThroughACanyonLidarCannotSeeAlong) {
   TempDir dir;
   // Every realism key but the beams' elevation bias, which the run would first estimate over its
@@ -70,16 +88,10 @@ TEST(InertialDrive, AHandheldWalkNeedsNoPredictionWithTheImu) {
   ASSERT_EQ(sim.code, 0) << sim.err;
   double failures[2], ate[2];
   for (int imu = 0; imu < 2; ++imu) {
-    const std::string out = dir / (imu ? "imu" : "lidar");
-    const CliRun r = run_gcmap("map " + dir / "walk" + " -o " + out + " --quiet --no-render" + (imu ? "" : " --no-imu"));
-    ASSERT_EQ(r.code, 0) << r.err;
-    const std::string stats = slurp(out + "/stats.json");
-    failures[imu] = number_after(stats, "\"odometry_failures\":");
+    const WalkRun w = map_walk(dir / "walk", dir / (imu ? "imu" : "lidar"), imu ? "" : " --no-imu");
+    failures[imu] = w.failures, ate[imu] = w.ate;
     // The odometry's roll and pitch wander on a walk, and the state's gravity follows them.
-    if (imu) EXPECT_GT(number_after(stats, "\"inertial_gravity_turned_deg\":"), 0.0);
-    const CliRun eval = run_gcmap("eval --gt " + dir / "walk/poses.txt" + " --est " + out + "/trajectory.kitti");
-    ASSERT_EQ(eval.code, 0) << eval.err;
-    ate[imu] = number_after(eval.out, "\"ate_m\":\\{\"rmse\":");
+    if (imu) EXPECT_GT(number_after(w.stats, "\"inertial_gravity_turned_deg\":"), 0.0);
   }
   std::printf("handheld: odometry failures %.0f / %.0f, ATE %.3f / %.3f m (LiDAR only / with the IMU)\n", failures[0],
               failures[1], ate[0], ate[1]);
@@ -99,13 +111,8 @@ TEST(InertialDrive, AWalkWithoutPointTimesTakesTheStatesPoses) {
   TempDir dir;
   const CliRun sim = run_gcmap("simulate -o " + dir / "walk" + " --scenario handheld --frames 300 --imu");
   ASSERT_EQ(sim.code, 0) << sim.err;
-  const std::string out = dir / "map";
-  const CliRun r = run_gcmap("map " + dir / "walk" + " -o " + out + " --quiet --no-render --no-deskew");
-  ASSERT_EQ(r.code, 0) << r.err;
-  const double failures = number_after(slurp(out + "/stats.json"), "\"odometry_failures\":");
-  const CliRun eval = run_gcmap("eval --gt " + dir / "walk/poses.txt" + " --est " + out + "/trajectory.kitti");
-  ASSERT_EQ(eval.code, 0) << eval.err;
-  const double ate = number_after(eval.out, "\"ate_m\":\\{\"rmse\":");
+  const WalkRun w = map_walk(dir / "walk", dir / "map", " --no-deskew");
+  const double failures = w.failures, ate = w.ate;
   std::printf("the walk without point times: %.0f odometry failures, ATE %.3f m\n", failures, ate);
   EXPECT_GE(failures, 0.0);
   EXPECT_LE(failures, 12.0);
@@ -121,13 +128,8 @@ TEST(InertialDrive, AWalkWhoseRegistrationJumpsKeepsTheStateListening) {
   TempDir dir;
   const CliRun sim = run_gcmap("simulate -o " + dir / "walk" + " --scenario handheld --frames 420 --seed 2 --imu");
   ASSERT_EQ(sim.code, 0) << sim.err;
-  const std::string out = dir / "map";
-  const CliRun r = run_gcmap("map " + dir / "walk" + " -o " + out + " --quiet --no-render");
-  ASSERT_EQ(r.code, 0) << r.err;
-  const double failures = number_after(slurp(out + "/stats.json"), "\"odometry_failures\":");
-  const CliRun eval = run_gcmap("eval --gt " + dir / "walk/poses.txt" + " --est " + out + "/trajectory.kitti");
-  ASSERT_EQ(eval.code, 0) << eval.err;
-  const double ate = number_after(eval.out, "\"ate_m\":\\{\"rmse\":");
+  const WalkRun w = map_walk(dir / "walk", dir / "map", "");
+  const double failures = w.failures, ate = w.ate;
   std::printf("seed 2's walk: %.0f odometry failures, ATE %.3f m\n", failures, ate);
   EXPECT_GE(failures, 0.0);
   EXPECT_LE(failures, 3.0);

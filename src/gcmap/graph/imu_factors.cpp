@@ -169,29 +169,15 @@ NavOptimizationResult optimize_nav_states(const std::vector<std::unique_ptr<NavF
     for (int k = 0; k < f->num_keys(); ++k)
       if (f->keys()[k] < 0 || f->keys()[k] >= static_cast<int>(states.size()))
         throw Error("an IMU factor references state " + std::to_string(f->keys()[k]) + ", which has no value");
-  NavOptimizationResult result;
-  double error = result.initial_error = nav_error(factors, states), lambda = 1e-6;
-  Eigen::MatrixXd H;
-  Eigen::VectorXd b;
-  for (; result.iterations < max_iterations && !result.converged; ++result.iterations) {
-    nav_system(factors, states, H, b);
-    bool accepted = false;
-    for (; lambda < 1e10 && !accepted; lambda *= 10.0) {
-      Eigen::MatrixXd A = H;
-      A.diagonal() += lambda * H.diagonal().cwiseMax(1e-9);
-      const Eigen::VectorXd d = A.ldlt().solve(-b);
-      std::vector<NavState> moved(states.size());
-      for (size_t s = 0; s < states.size(); ++s) moved[s] = states[s].retract(d.segment<15>(15 * s));
-      const double e = nav_error(factors, moved);
-      if (!(e < error)) continue;
-      result.converged = error - e < 1e-10 * std::max(error, 1e-12) || d.lpNorm<Eigen::Infinity>() < 1e-10;
-      states = std::move(moved), error = e, accepted = true;
-      lambda = std::max(lambda / 100.0, 1e-12);
-    }
-    if (!accepted) result.converged = true;  // no step lowers the error: at a minimum
-  }
-  result.final_error = error;
-  return result;
+  std::vector<NavState> moved(states.size());
+  return dense_levenberg_marquardt(
+      nav_error(factors, states), max_iterations,
+      [&](Eigen::MatrixXd& H, Eigen::VectorXd& b) { nav_system(factors, states, H, b); },
+      [&](const Eigen::VectorXd& d) {
+        for (size_t s = 0; s < states.size(); ++s) moved[s] = states[s].retract(d.segment<15>(15 * s));
+        return nav_error(factors, moved);
+      },
+      [&] { states.swap(moved); });
 }
 
 }  // namespace gcmap

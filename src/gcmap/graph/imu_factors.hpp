@@ -3,7 +3,9 @@
 // residual with its Jacobians over the 15-dimensional tangents of the states it touches, whitened
 // so that its error is |r|^2. The pose-only LevenbergMarquardt does not take them yet: a dense LM
 // over a few states (optimize_nav_states) solves them on their own.
+#include <Eigen/Cholesky>
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
 #include <memory>
 #include <vector>
@@ -99,6 +101,37 @@ struct NavOptimizationResult {
   double initial_error = 0.0, final_error = 0.0;
   bool converged = false;
 };
+
+// The damped Gauss-Newton loop of optimize_nav_states over any unknowns: system(H, b) linearizes at
+// the current values, trial(d) returns the error of the values moved by d and keeps them, accept()
+// makes the kept ones current. error: the current values' error.
+template <class System, class Trial, class Accept>
+NavOptimizationResult dense_levenberg_marquardt(double error, int max_iterations, System&& system, Trial&& trial,
+                                                Accept&& accept) {
+  NavOptimizationResult result;
+  result.initial_error = error;
+  double lambda = 1e-6;
+  Eigen::MatrixXd H;
+  Eigen::VectorXd b;
+  for (; result.iterations < max_iterations && !result.converged; ++result.iterations) {
+    system(H, b);
+    bool accepted = false;
+    for (; lambda < 1e10 && !accepted; lambda *= 10.0) {
+      Eigen::MatrixXd A = H;
+      A.diagonal() += lambda * H.diagonal().cwiseMax(1e-9);
+      const Eigen::VectorXd d = A.ldlt().solve(-b);
+      const double e = trial(d);
+      if (!(e < error)) continue;
+      result.converged = error - e < 1e-10 * std::max(error, 1e-12) || d.lpNorm<Eigen::Infinity>() < 1e-10;
+      accept();
+      error = e, accepted = true;
+      lambda = std::max(lambda / 100.0, 1e-12);
+    }
+    if (!accepted) result.converged = true;  // no step lowers the error: at a minimum
+  }
+  result.final_error = error;
+  return result;
+}
 
 // Dense Levenberg-Marquardt over states[0..n): for a handful of states (tests, initialization).
 // Throws Error when a factor references a missing state.

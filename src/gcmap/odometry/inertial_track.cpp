@@ -103,27 +103,19 @@ void Window::system(const std::vector<NavState>& states, const Eigen::Vector2d& 
 
 // Levenberg-Marquardt over the window's states and tilt.
 void optimize(const Window& w, std::vector<NavState>& states, Eigen::Vector2d& theta, int max_iterations) {
-  double error = w.error(states, theta), lambda = 1e-6;
-  Eigen::MatrixXd H;
-  Eigen::VectorXd b;
-  for (int it = 0; it < max_iterations; ++it) {
-    w.system(states, theta, H, b);
-    bool accepted = false;
-    for (; lambda < 1e10 && !accepted; lambda *= 10.0) {
-      Eigen::MatrixXd A = H;
-      A.diagonal() += lambda * H.diagonal().cwiseMax(1e-9);
-      const Eigen::VectorXd d = A.ldlt().solve(-b);
-      std::vector<NavState> moved{states[0].retract(d.segment<15>(2)), states[1].retract(d.tail<15>())};
-      const Eigen::Vector2d moved_theta = theta + d.head<2>();
-      const double e = w.error(moved, moved_theta);
-      if (!(e < error)) continue;
-      const bool converged = error - e < 1e-10 * std::max(error, 1e-12) || d.lpNorm<Eigen::Infinity>() < 1e-10;
-      states = std::move(moved), theta = moved_theta, error = e, accepted = true;
-      lambda = std::max(lambda / 100.0, 1e-12);
-      if (converged) return;
-    }
-    if (!accepted) return;  // no step lowers the error: at a minimum
-  }
+  std::vector<NavState> moved(2);
+  Eigen::Vector2d moved_theta;
+  dense_levenberg_marquardt(
+      w.error(states, theta), max_iterations, [&](Eigen::MatrixXd& H, Eigen::VectorXd& b) { w.system(states, theta, H, b); },
+      [&](const Eigen::VectorXd& d) {
+        moved = {states[0].retract(d.segment<15>(2)), states[1].retract(d.tail<15>())};
+        moved_theta = theta + d.head<2>();
+        return w.error(moved, moved_theta);
+      },
+      [&] {
+        states.swap(moved);
+        theta = moved_theta;
+      });
 }
 
 // The information over [tilt, state 1] once state 0 is marginalized (Schur complement), the tilt
