@@ -64,7 +64,16 @@ TEST(InertialDrive, TheImuCarriesTheDriveThroughACanyonLidarCannotSeeAlong) {
     const auto est = read_trajectory(out + "/trajectory.kitti").poses;
     ASSERT_EQ(est.size(), truth.size());
     drift[imu] = drift_fraction(truth, est, 50.0);  // the canyon starts at 46 m
-    if (imu) {
+    if (!imu) {
+      // LiDAR alone cannot see the motion along the canyon: its registrations there are degenerate,
+      // and the cruise's velocity is held by the guess alone. Whether that guess survives the
+      // canyon is chance: 81 % drift on this drive before the model was filled at the start, 1.8 %
+      // after.
+      const std::string quality = slurp(out + "/quality.json");
+      const std::regex degenerate("\"degenerate\":true");
+      const auto flagged = std::distance(std::sregex_iterator(quality.begin(), quality.end(), degenerate), std::sregex_iterator());
+      EXPECT_GT(flagged, 120) << "of 250 frames, 170 in the canyon";
+    } else {
       EXPECT_GT(number_after(slurp(out + "/stats.json"), "\"inertial_predicted_sweeps\":"), 200.0)
           << "the state is found within the first seconds";
       // The accelerometer levels the map. On this straight drive only the bias prior tells a tilt
@@ -76,9 +85,7 @@ TEST(InertialDrive, TheImuCarriesTheDriveThroughACanyonLidarCannotSeeAlong) {
     }
   }
   std::printf("drift through the canyon: LiDAR only %.1f %%, with the IMU %.1f %%\n", 100 * drift[0], 100 * drift[1]);
-  EXPECT_GT(drift[0], 0.3) << "LiDAR alone should not see the motion along the canyon";
-  EXPECT_LT(drift[1], 0.15);
-  EXPECT_LT(drift[1], 0.25 * drift[0]);
+  EXPECT_LT(drift[1], 0.1);
 }
 
 TEST(InertialDrive, AHandheldWalkNeedsNoPredictionWithTheImu) {
@@ -96,9 +103,9 @@ TEST(InertialDrive, AHandheldWalkNeedsNoPredictionWithTheImu) {
   std::printf("handheld: odometry failures %.0f / %.0f, ATE %.3f / %.3f m (LiDAR only / with the IMU)\n", failures[0],
               failures[1], ate[0], ate[1]);
   EXPECT_GT(failures[0], 20.0);
-  // At most the one of the start (frame 20 on imu.accel_noise 0.1, none on 0.02): the state is found
-  // from the first second of registrations, which the walk makes 0.1-0.5 m off per frame.
-  EXPECT_LE(failures[1], 1.0);
+  // None: the state is found from the first second of registrations. Before the model was filled
+  // at the start, the walk made them 0.1-0.5 m off per frame, and frame 20 failed.
+  EXPECT_EQ(failures[1], 0.0);
   EXPECT_GE(ate[1], 0.0);
   EXPECT_LT(ate[1], 0.3);
   EXPECT_GT(ate[0], 1.0);

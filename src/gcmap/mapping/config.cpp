@@ -140,7 +140,9 @@ void visit_odometry_local(Config& c, Visitor& v) {
   v("odometry", "voxel_resolution", c.odometry.voxel_resolution,
     KeyDoc{"m", 0.01, 100, "odometry/", "Voxel size of the scan-to-model VGICP registration of the odometry."});
   v("odometry", "model_keyframes", c.odometry.model_keyframes,
-    KeyDoc{"-", 1, 100, "odometry/", "Recent keyframes whose points form the local model each scan is registered to."});
+    KeyDoc{"-", 1, 100, "odometry/",
+           "Recent keyframes whose points form the local model each scan is registered to; until it holds this many, every "
+           "registered frame becomes one."});
   v("odometry", "keyframe_distance", c.odometry.keyframe_distance,
     KeyDoc{"m", 0, 100, "odometry/", "A frame becomes a keyframe of the model once it moved this far from the last keyframe."});
   v("odometry", "keyframe_angle_deg", c.odometry.keyframe_angle_deg,

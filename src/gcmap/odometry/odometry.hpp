@@ -93,6 +93,8 @@ class Odometry {
   Eigen::Isometry3d estimate(const PointCloud& frame, const Eigen::Isometry3d& guess, Guess kind, bool* failed = nullptr,
                              RegistrationQuality* quality = nullptr) const;
   // quality: of the registration that placed the frame (its inlier fraction joins the recent ones).
+  // A frame becomes a keyframe past keyframe_distance or keyframe_angle_deg from the last one, and
+  // every registered frame does while the model holds fewer than model_keyframes.
   void accept(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T,
               std::optional<double> stamp = std::nullopt, bool failed = false, const RegistrationQuality& quality = {});
   bool has_model() const { return model_ != nullptr; }
