@@ -71,7 +71,8 @@ TEST(InertialDrive, TheImuCarriesTheDriveThroughACanyonLidarCannotSeeAlong) {
       // after.
       const std::string quality = slurp(out + "/quality.json");
       const std::regex degenerate("\"degenerate\":true");
-      const auto flagged = std::distance(std::sregex_iterator(quality.begin(), quality.end(), degenerate), std::sregex_iterator());
+      const auto flagged =
+          std::distance(std::sregex_iterator(quality.begin(), quality.end(), degenerate), std::sregex_iterator());
       EXPECT_GT(flagged, 120) << "of 250 frames, 170 in the canyon";
     } else {
       EXPECT_GT(number_after(slurp(out + "/stats.json"), "\"inertial_predicted_sweeps\":"), 200.0)
