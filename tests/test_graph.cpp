@@ -291,6 +291,45 @@ TEST(LevenbergMarquardt, SingularSystemIsReported) {
   EXPECT_THROW(lm.optimize(g, v, {0}), Error);
 }
 
+// The gyro's rotation between two poses weighs their relative rotation by its variance and says
+// nothing of their relative translation; chained, rotations compose and variances add.
+TEST(GyroRotationFactor, HoldsTheRelativeRotationAndLeavesTheTranslation) {
+  const GyroRotation a{so3_exp(Eigen::Vector3d(0.0, 0.0, 0.2)), 1e-6}, b{so3_exp(Eigen::Vector3d(0.1, 0.0, 0.0)), 2e-6};
+  const GyroRotation ab = a.then(b);
+  EXPECT_TRUE(ab.R.isApprox(a.R * b.R, 1e-12));
+  EXPECT_DOUBLE_EQ(ab.variance, 3e-6);
+
+  const auto f = gyro_rotation_factor(0, 1, ab);
+  const Eigen::Isometry3d T0 = se3_exp((Vector6d() << 0.3, -0.2, 0.1, 4.0, 5.0, 6.0).finished());
+  Eigen::Isometry3d T1 = T0;
+  T1.linear() = T0.linear() * ab.R;
+  T1.translation() += Eigen::Vector3d(1.0, 2.0, 3.0);
+  const Eigen::Isometry3d* at[2] = {&T0, &T1};
+  EXPECT_NEAR(f->trial_error(at), 0.0, 1e-12);
+  Eigen::Isometry3d moved = T1;
+  moved.translation() += Eigen::Vector3d(-7.0, 0.5, 2.0);
+  const Eigen::Isometry3d* shifted[2] = {&T0, &moved};
+  EXPECT_NEAR(f->trial_error(shifted), 0.0, 1e-12);
+  Eigen::Isometry3d turned = T1;
+  turned.linear() = T1.linear() * so3_exp(Eigen::Vector3d(0.0, 1e-3, 0.0));
+  const Eigen::Isometry3d* off[2] = {&T0, &turned};
+  EXPECT_NEAR(f->trial_error(off), 1e-6 / 3e-6, 1e-9);
+
+  // Pose 1 turned 3 deg off the gyro's rotation comes back to it; a translation-only factor holds
+  // where it is.
+  FactorGraph g;
+  g.add(f);
+  Matrix6d translation_only = Matrix6d::Zero();
+  translation_only.bottomRightCorner<3, 3>() = Eigen::Matrix3d::Identity() * 100.0;
+  g.add(std::make_shared<RelativePoseFactor>(0, 1, T0.inverse() * T1, translation_only));
+  Values v{{0, T0}, {1, T1}};
+  v[1].linear() = T1.linear() * so3_exp(Eigen::Vector3d(0.03, -0.04, 0.02));
+  LevenbergMarquardt lm;
+  EXPECT_TRUE(lm.optimize(g, v, {0}).converged);
+  EXPECT_LT(test::rotation_error_deg(v[1], T1), 1e-5);
+  EXPECT_LT(test::translation_error(v[1], T1), 1e-6);
+}
+
 // A long drive can leave a pose whose only factors say nothing at the estimate: a loop's shifted
 // Tukey kernel at zero weight (here: measurement met exactly, 5 from the kernel's peak). That pose
 // stays where it is; the others are optimized (city three times in a row stopped here once).

@@ -85,4 +85,12 @@ double RelativePoseFactor::trial_error(const Eigen::Isometry3d* const* poses) co
   return weight_ * e.dot(information_ * e);
 }
 
+std::shared_ptr<RelativePoseFactor> gyro_rotation_factor(int key_i, int key_j, const GyroRotation& gyro) {
+  Eigen::Isometry3d measured = Eigen::Isometry3d::Identity();
+  measured.linear() = gyro.R;
+  Matrix6d information = Matrix6d::Zero();  // [rotation; translation]
+  information.topLeftCorner<3, 3>() = Eigen::Matrix3d::Identity() / gyro.variance;
+  return std::make_shared<RelativePoseFactor>(key_i, key_j, measured, information);
+}
+
 }  // namespace gcmap

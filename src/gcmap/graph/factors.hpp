@@ -7,6 +7,7 @@
 #include <optional>
 
 #include "gcmap/core/gaussian_voxel_map.hpp"
+#include "gcmap/core/imu_sample.hpp"
 #include "gcmap/core/point_cloud.hpp"
 #include "gcmap/core/se3.hpp"
 #include "gcmap/graph/robust_kernel.hpp"
@@ -119,5 +120,9 @@ class RelativePoseFactor : public Factor {
   RobustKernel kernel_;
   double weight_ = 1.0;
 };
+
+// The gyro's rotation from pose i to pose j (in pose i's frame) as their relative rotation, over
+// its variance; their relative translation is left free.
+std::shared_ptr<RelativePoseFactor> gyro_rotation_factor(int key_i, int key_j, const GyroRotation& gyro);
 
 }  // namespace gcmap

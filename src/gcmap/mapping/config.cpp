@@ -193,6 +193,11 @@ void visit_odometry_local(Config& c, Visitor& v) {
     KeyDoc{"-", 1, 1000, "mapping/", "Levenberg-Marquardt iterations of a submap's keyframe optimization, at most."});
   v("local", "relative_error_tol", c.local.relative_error_tol,
     KeyDoc{"-", 0, 1, "mapping/", "The submap's optimization stops once a step lowers the error by less than this fraction."});
+  v("local", "gyro_weight", c.local.gyro_weight,
+    KeyDoc{"-", 0, 1e6, "mapping/",
+           "With an IMU, the gyro's rotation between consecutive keyframes is a factor of their submap, weighted this many times "
+           "what the gyro's noise (imu.gyro_noise) gives it: the matching costs count every point as independent and outweigh "
+           "it otherwise, while they turn sparse sweeps against each other by tenths of a degree. 0: no such factor."});
 }
 
 template <typename Config, typename Visitor>
@@ -329,7 +334,7 @@ void visit_imu(Config& c, Visitor& v) {
            "the gyro predicts the rotation, the last motion the translation."});
   v("imu", "level_map", c.imu.level_map,
     KeyDoc{"-", 0, 0, "mapping/",
-           "The accelerometer's gravity, measured over every submap's last 2 s of odometry, holds the global graph level: the "
+           "The accelerometer's gravity, measured over every submap's last 4 s of odometry, holds the global graph level: the "
            "map's z is gravity's, and the accelerometer's bias is estimated with it. false: the map stays in the first scan's "
            "frame."});
 }

@@ -43,6 +43,9 @@ struct LocalMappingConfig {
   int factor_source_points = 0;  // > 0: keyframe points used as the source of in-submap factors (0: all)
   int max_iterations = 20;
   double relative_error_tol = 1e-4;  // LM stops once a step gains less than this fraction
+  // The gyro's rotation between consecutive keyframes counts this many times what its noise gives
+  // it: the matching costs count every point as independent (docs/pipeline.md).
+  double gyro_weight = 10.0;
 };
 
 struct GlobalMappingConfig {

@@ -119,6 +119,7 @@ void GlobalMapper::add_factor(GlobalFactor f) {
 void GlobalMapper::add_unary(FactorGraph& g) const {
   for (const auto& f : gnss_factors_) g.add(f);
   for (const auto& f : gravity_factors_) g.add(f);
+  for (const auto& f : gyro_factors_) g.add(f);
   if (accel_bias_prior_) g.add(accel_bias_prior_);
   if (gauge_ && !georeferenced_) g.add(gauge_);
 }
@@ -163,8 +164,9 @@ Eigen::Vector3d GlobalMapper::accel_bias() const {
   return it->second.translation();
 }
 
-void GlobalMapper::drop_gravity() {
+void GlobalMapper::drop_imu() {
   gravity_factors_.clear();
+  gyro_factors_.clear();
   accel_bias_prior_.reset();
   gauge_.reset();
   values_.erase(kAccelBiasKey);
@@ -226,8 +228,8 @@ bool GlobalMapper::try_georeference() {
   return true;
 }
 
-void GlobalMapper::insert(Submap s, LoopDetector* loops, std::vector<GnssMeasurement> gnss,
-                          std::optional<GravityWindow> gravity) {
+void GlobalMapper::insert(Submap s, LoopDetector* loops, std::vector<GnssMeasurement> gnss, std::optional<GravityWindow> gravity,
+                          const std::optional<GyroRotation>& gyro) {
   const int id = s.id;
   if (id == 0) {
     values_[0] = Eigen::Isometry3d::Identity();
@@ -239,6 +241,7 @@ void GlobalMapper::insert(Submap s, LoopDetector* loops, std::vector<GnssMeasure
   const Submap& cur = submaps_.back();
   take_gnss(std::move(gnss));
   if (gravity) take_gravity(*gravity);
+  if (gyro && id > 0) gyro_factors_.push_back(gyro_rotation_factor(id - 1, id, *gyro));
   if (id == 0) {
     stats_.per_submap.push_back({1, 0, 0.0, 0});
     return;
@@ -342,7 +345,7 @@ int GlobalMapper::connect_overlapping(int id, int first) {
 
 void GlobalMapper::optimize_final(std::optional<int> max_iterations, const IterationCallback& on_iteration) {
   const int iterations = max_iterations ? std::min(*max_iterations, config_.final_iterations) : config_.final_iterations;
-  if ((factors_.empty() && gnss_factors_.empty() && gravity_factors_.empty()) || iterations <= 0) return;
+  if ((factors_.empty() && gnss_factors_.empty() && gravity_factors_.empty() && gyro_factors_.empty()) || iterations <= 0) return;
   LevenbergMarquardt final_lm(lm_config(config_, iterations), lm_backend());
   final_lm.on_iteration(on_iteration);
   if (lazy_) lazy_->set_max_relinearizations(0);  // what insertions deferred is caught up here

@@ -84,8 +84,9 @@ class GlobalMapper {
   // submap 0's origin (its heading and position kept); each becomes a GravityFactor on the submap
   // and the accelerometer's bias (a variable of the graph, kAccelBiasKey), and submap 0 is held by
   // its position and heading only (until georeferenced: then by nothing).
+  // gyro: the gyro's rotation from the previous submap's origin to this one's, a factor between them.
   void insert(Submap submap, LoopDetector* loops, std::vector<GnssMeasurement> gnss = {},
-              std::optional<GravityWindow> gravity = std::nullopt);
+              std::optional<GravityWindow> gravity = std::nullopt, const std::optional<GyroRotation>& gyro = std::nullopt);
   // The final optimization, to a 1e-6 relative tolerance, of at most global.final_iterations
   // (or max_iterations when given; 0 skips it); on_iteration after each of its iterations.
   void optimize_final(std::optional<int> max_iterations = std::nullopt, const IterationCallback& on_iteration = {});
@@ -110,8 +111,8 @@ class GlobalMapper {
   // The pose that carries the accelerometer's bias in the graph (its translation).
   const Eigen::Isometry3d& accel_bias_pose() const { return values_.at(kAccelBiasKey); }
   static constexpr int kAccelBiasKey = -1;
-  // Forgets the accelerometer (the IMU was found misplaced): submap 0 is held again where it is.
-  void drop_gravity();
+  // Forgets the IMU (found misplaced): its gravity and gyro factors; submap 0 is held again where it is.
+  void drop_imu();
 
  private:
   void add_factor(GlobalFactor f);
@@ -144,6 +145,7 @@ class GlobalMapper {
   std::vector<std::shared_ptr<GnssPositionFactor>> gnss_factors_;
   ImuConfig imu_;
   std::vector<std::shared_ptr<GravityFactor>> gravity_factors_;
+  std::vector<std::shared_ptr<RelativePoseFactor>> gyro_factors_;
   std::shared_ptr<AccelBiasPriorFactor> accel_bias_prior_;
   std::shared_ptr<HeadingPositionFactor> gauge_;
   std::shared_ptr<LinearizationBackend> backend_;

@@ -28,13 +28,14 @@ Mapper::Mapper(const MappingConfig& config, std::shared_ptr<LinearizationBackend
       global_(config_.global, config_.loop, backend_, config_.gnss, config_.imu) {}
 
 FrameStatus Mapper::add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom,
-                              std::optional<KeyframeShape> shape, double stamp, bool observed) {
+                              std::optional<KeyframeShape> shape, double stamp, bool observed,
+                              const std::optional<GyroRotation>& gyro) {
   if (frame != static_cast<int>(frames_.size())) throw Error("Mapper: frames must be numbered consecutively from 0");
   if (!fixes_.empty() && !stamps_.empty() && stamp < stamps_.back())
     throw Error("Mapper: frame " + std::to_string(frame) + "'s stamp is before the previous frame's");
-  frames_.push_back({-1, T_odom, -1, -1, observed});
+  frames_.push_back({-1, T_odom, -1, -1, observed, gyro});
   stamps_.push_back(stamp);
-  SubmapBuilder::Result r = local_.add_frame(frame, cloud, T_odom, std::move(shape));
+  SubmapBuilder::Result r = local_.add_frame(frame, cloud, T_odom, std::move(shape), gyro);
   frames_.back().anchor = r.anchor;
   if (r.closed) insert(std::move(*r.closed));
   return r.status;
@@ -55,7 +56,8 @@ void Mapper::insert(Submap submap) {
   loops_.add_submap(submap);
   std::vector<GnssMeasurement> fixes = place_fixes(submap);
   std::optional<GravityWindow> gravity = gravity_window(submap);
-  global_.insert(std::move(submap), &loops_, std::move(fixes), gravity);
+  std::optional<GyroRotation> gyro = gyro_between_submaps(submap);
+  global_.insert(std::move(submap), &loops_, std::move(fixes), gravity, gyro);
 }
 
 void Mapper::add_imu(const ImuSample& sample) {
@@ -66,10 +68,22 @@ void Mapper::add_imu(const ImuSample& sample) {
   imu_.push_back(s);
 }
 
-void Mapper::drop_gravity() {
+void Mapper::drop_imu() {
   gravity_dropped_ = true;
   imu_.clear();
-  global_.drop_gravity();
+  for (FrameRecord& f : frames_) f.gyro.reset();
+  local_.drop_gyro();
+  global_.drop_imu();
+}
+
+std::optional<GyroRotation> Mapper::gyro_between_submaps(const Submap& inserting) const {
+  if (inserting.id == 0 || submaps().empty()) return std::nullopt;
+  GyroRotation chain;
+  for (int f = submaps().back().keyframes.front() + 1; f <= inserting.keyframes.front(); ++f) {
+    if (!frames_[f].gyro) return std::nullopt;
+    chain = chain.then(*frames_[f].gyro);
+  }
+  return chain;
 }
 
 namespace {

@@ -65,8 +65,10 @@ class Mapper {
   // stamp: s, needed only where GNSS fixes are to be placed. observed: the odometry's position of
   // the frame comes from a registration that sees every direction (not placed by a prediction, not
   // degenerate); gravity windows take only such frames, since they read gravity from positions.
+  // gyro: the gyro's rotation since the previous frame (SubmapBuilder::add_frame).
   FrameStatus add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom,
-                        std::optional<KeyframeShape> shape = std::nullopt, double stamp = 0.0, bool observed = true);
+                        std::optional<KeyframeShape> shape = std::nullopt, double stamp = 0.0, bool observed = true,
+                        const std::optional<GyroRotation>& gyro = std::nullopt);
   // GNSS fixes (stamps increasing) to place on the submaps as they close: each at the pose
   // interpolated between the frames around its stamp, the antenna at gnss.lever_arm_*.
   void set_gnss(std::vector<GnssPosition> fixes);
@@ -76,8 +78,9 @@ class Mapper {
   // the frames it spans: each closing submap gets the accelerometer's gravity over the last
   // seconds of odometry (graph/gravity_window.hpp). Ignored unless imu.use and imu.level_map.
   void add_imu(const ImuSample& sample);
-  // The IMU was found misplaced (its gyro disagrees): no more gravity, and none of what was taken.
-  void drop_gravity();
+  // The IMU was found misplaced (its gyro disagrees): no more gravity or gyro rotations, and none
+  // of what was taken.
+  void drop_imu();
   bool levelled() const { return global_.levelled(); }
   GravityStats gravity_stats() const;
   // A frame's sweep deskewed again (SweepRevision), before the next frame is added: its odometry
@@ -112,8 +115,9 @@ class Mapper {
   struct FrameRecord {
     int anchor = -1;  // keyframe (frame index) this frame is placed from
     Eigen::Isometry3d T_odom;
-    int submap = -1, index = -1;  // for keyframes of closed submaps: where the keyframe is
-    bool observed = true;         // see add_frame
+    int submap = -1, index = -1;       // for keyframes of closed submaps: where the keyframe is
+    bool observed = true;              // see add_frame
+    std::optional<GyroRotation> gyro;  // since the previous frame
   };
   void insert(Submap submap);
   // The fixes from next_fix_ that can be placed now (their frames are in closed submaps, or in
@@ -121,6 +125,8 @@ class Mapper {
   std::vector<GnssMeasurement> place_fixes(const Submap& inserting);
   // The gravity window over the last seconds of frames, in the frame of `inserting`.
   std::optional<GravityWindow> gravity_window(const Submap& inserting);
+  // The gyro's rotation from the previous submap's origin to that of `inserting`, when it spans it.
+  std::optional<GyroRotation> gyro_between_submaps(const Submap& inserting) const;
   // A frame's pose in its anchor's submap; nullopt while that submap is open.
   std::optional<std::pair<int, Eigen::Isometry3d>> in_submap(int frame, const Submap& inserting) const;
   Eigen::Isometry3d keyframe_world(int keyframe) const;

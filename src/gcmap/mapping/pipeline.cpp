@@ -163,6 +163,7 @@ MappingPipeline::Tracked MappingPipeline::track_frame(PreparedScan scan, std::op
         "at the next scan",
         f.index);
   odometry_ms_.add(w.lap_ms());
+  if (!stamps_.empty()) t.gyro = odometry_.gyro_rotation(stamps_.back(), scan.stamp);
   stamps_.push_back(scan.stamp);
   odometry_poses_.push_back(f.T_odom);
   f.points = scan.cloud ? scan.cloud->size() : 0;
@@ -174,10 +175,10 @@ MappingPipeline::Tracked MappingPipeline::track_frame(PreparedScan scan, std::op
 
 Frame MappingPipeline::map_frame(Tracked t) {
   Frame& f = t.frame;
-  if (t.imu_rejected) mapper_.drop_gravity();
+  if (t.imu_rejected) mapper_.drop_imu();
   if (t.revised) mapper_.revise_frame(t.revised->frame, t.revised->cloud, t.revised->T_world_frame);
   const bool observed = !f.odometry_failed && (!f.registration.registered || f.registration.conditioning() >= kDegenerateConditioning);
-  f.status = mapper_.add_frame(f.index, t.cloud, f.T_odom, std::move(t.keyframe), f.stamp, observed);
+  f.status = mapper_.add_frame(f.index, t.cloud, f.T_odom, std::move(t.keyframe), f.stamp, observed, t.gyro);
   if (f.status == FrameStatus::unusable && t.cloud) ++unusable_frames_;
   statuses_.push_back(f.status);
   f.T_world_frame = mapper_.frame_pose(f.index);

@@ -154,7 +154,8 @@ class MappingPipeline {
     std::shared_ptr<PointCloud> cloud;
     std::optional<KeyframeShape> keyframe;  // the prepared one, while the cloud was not deskewed
     std::optional<SweepRevision> revised;
-    bool imu_rejected = false;  // the odometry dropped the IMU at this frame: so does the mapper
+    bool imu_rejected = false;         // the odometry dropped the IMU at this frame: so does the mapper
+    std::optional<GyroRotation> gyro;  // since the previous frame
   };
   Tracked track_frame(PreparedScan scan, std::optional<Eigen::Isometry3d> T_odom);
   Frame map_frame(Tracked t);

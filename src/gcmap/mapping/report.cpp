@@ -89,6 +89,7 @@ Json stats_json(const MappingPipeline& pipeline) {
     imu["gyro_bias_rad_s"] = bias;  // LiDAR frame, the estimate at the end
     if (ps.gyro_rejected_at) imu["gyro_rejected_at_frame"] = *ps.gyro_rejected_at;
     imu["inertial_predicted_sweeps"] = ps.inertial_predicted;
+    imu["submap_gyro_factors"] = ms.local.gyro_factors;  // between consecutive keyframes of a submap
     if (ps.inertial_bias) {
       Json gyro = Json::array(), accel = Json::array();
       for (int i = 0; i < 3; ++i) gyro.push_back(ps.inertial_bias->gyro[i]), accel.push_back(ps.inertial_bias->accel[i]);

@@ -43,23 +43,27 @@ SubmapBuilder::Keyframe SubmapBuilder::make_keyframe(int frame, const Eigen::Iso
                                                      const std::shared_ptr<const PointCloud>& cloud,
                                                      std::optional<KeyframeShape> shape) const {
   if (!shape) shape = keyframe_shape(*cloud, config_, loop_);
-  return {frame, T_odom, cloud, std::move(shape->voxels), std::move(shape->descriptor)};
+  return {frame, T_odom, cloud, std::move(shape->voxels), std::move(shape->descriptor), std::nullopt};
 }
 
 bool SubmapBuilder::revise(int frame, const std::shared_ptr<const PointCloud>& cloud, const Eigen::Isometry3d& T_odom) {
   for (Keyframe& k : open_)
     if (k.frame == frame && cloud && cloud->size() >= 100) {
-      k = make_keyframe(frame, T_odom, cloud, std::nullopt);
+      Keyframe revised = make_keyframe(frame, T_odom, cloud, std::nullopt);
+      revised.gyro = k.gyro;
+      k = std::move(revised);
       return true;
     }
   return false;
 }
 
 SubmapBuilder::Result SubmapBuilder::add_frame(int frame, const std::shared_ptr<const PointCloud>& cloud,
-                                               const Eigen::Isometry3d& T_odom, std::optional<KeyframeShape> shape) {
+                                               const Eigen::Isometry3d& T_odom, std::optional<KeyframeShape> shape,
+                                               const std::optional<GyroRotation>& gyro) {
   Result r;
   if (complete_) r.closed = close();
   r.anchor = last_keyframe_;
+  since_keyframe_ = since_keyframe_ && gyro ? std::optional(since_keyframe_->then(*gyro)) : std::nullopt;
   if (!cloud || cloud->size() < 100) return r;
   if (!open_.empty()) {
     const Keyframe& last = open_.back();
@@ -73,6 +77,8 @@ SubmapBuilder::Result SubmapBuilder::add_frame(int frame, const std::shared_ptr<
     if (ov < config_.th_min) r.closed = close();
   }
   open_.push_back(make_keyframe(frame, T_odom, cloud, std::move(shape)));
+  if (open_.size() >= 2) open_.back().gyro = since_keyframe_;
+  since_keyframe_ = GyroRotation{};
   r.status = FrameStatus::keyframe;
   r.anchor = last_keyframe_ = frame;
   if (open_.size() >= 2) {
@@ -131,6 +137,7 @@ std::vector<Eigen::Isometry3d> SubmapBuilder::optimize_keyframes(const Eigen::Is
         g.add(std::move(f));
       }
     }
+    add_gyro_factors(g);
     stats_.factors.add(w.lap_ms());
     LMConfig lc;
     lc.max_iterations = config_.max_iterations;
@@ -142,6 +149,24 @@ std::vector<Eigen::Isometry3d> SubmapBuilder::optimize_keyframes(const Eigen::Is
   std::vector<Eigen::Isometry3d> out;
   for (int k = 0; k < n; ++k) out.push_back(local.at(k));
   return out;
+}
+
+// The gyro's rotation between consecutive keyframes: the matching costs of sparse sweeps that
+// overlap almost entirely turn them against each other by tenths of a degree, where the gyro is
+// off by hundredths. Translations are left to the matching costs.
+void SubmapBuilder::add_gyro_factors(FactorGraph& graph) {
+  for (size_t b = 1; b < open_.size(); ++b) {
+    if (!open_[b].gyro || !(open_[b].gyro->variance > 0.0) || !(config_.gyro_weight > 0.0)) continue;
+    GyroRotation weighted = *open_[b].gyro;
+    weighted.variance /= config_.gyro_weight;
+    graph.add(gyro_rotation_factor(static_cast<int>(b) - 1, static_cast<int>(b), weighted));
+    ++stats_.gyro_factors;
+  }
+}
+
+void SubmapBuilder::drop_gyro() {
+  for (Keyframe& k : open_) k.gyro.reset();
+  since_keyframe_.reset();
 }
 
 std::optional<Submap> SubmapBuilder::close() {

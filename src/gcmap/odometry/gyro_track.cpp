@@ -43,14 +43,18 @@ size_t GyroTrack::index_before(double t) const {
   return static_cast<size_t>(std::max<std::ptrdiff_t>(after - samples_.begin() - 1, 0));
 }
 
-Eigen::Vector3d GyroTrack::rate(size_t k, double t) const {
-  if (k + 1 >= samples_.size()) return samples_.back().gyro - bias_;
+Eigen::Vector3d GyroTrack::rate(size_t k, double t, const Eigen::Vector3d& bias) const {
+  if (k + 1 >= samples_.size()) return samples_.back().gyro - bias;
   const ImuSample &a = samples_[k], &b = samples_[k + 1];
   const double f = std::clamp((t - a.stamp) / (b.stamp - a.stamp), 0.0, 1.0);
-  return a.gyro + f * (b.gyro - a.gyro) - bias_;
+  return a.gyro + f * (b.gyro - a.gyro) - bias;
 }
 
 std::vector<Eigen::Matrix3d> GyroTrack::rotations(double t0, double step, size_t n) const {
+  return rotations(t0, step, n, bias_);
+}
+
+std::vector<Eigen::Matrix3d> GyroTrack::rotations(double t0, double step, size_t n, const Eigen::Vector3d& bias) const {
   if (samples_.size() < 2) throw Error("GyroTrack: no IMU samples");
   std::vector<Eigen::Matrix3d> out;
   out.reserve(n);
@@ -62,7 +66,7 @@ std::vector<Eigen::Matrix3d> GyroTrack::rotations(double t0, double step, size_t
     // Piecewise between the samples: the mean rate of each piece's ends (second order).
     while (t < target) {
       const double next = k + 1 < samples_.size() ? std::min(target, samples_[k + 1].stamp) : target;
-      if (next > t) R *= so3_exp(0.5 * (rate(k, t) + rate(k, next)) * (next - t));
+      if (next > t) R *= so3_exp(0.5 * (rate(k, t, bias) + rate(k, next, bias)) * (next - t));
       t = next;
       if (k + 1 < samples_.size() && t >= samples_[k + 1].stamp) ++k;
     }
@@ -94,7 +98,7 @@ void GyroTrack::compare_rate(double t0, double t1, const Eigen::Vector3d& regist
     for (int i = 0; i <= steps; ++i) {
       const double t = t0 + shift + h * i;
       while (k + 1 < samples_.size() && samples_[k + 1].stamp <= t) ++k;
-      sum += (i == 0 || i == steps ? 0.5 : 1.0) * rate(k, t);
+      sum += (i == 0 || i == steps ? 0.5 : 1.0) * rate(k, t, bias_);
     }
     shift_sse_[static_cast<size_t>(j)] += (sum / steps - registered).squaredNorm();
     if (j == kShiftSteps) registered_gyro_ += registered * (sum / steps).transpose();

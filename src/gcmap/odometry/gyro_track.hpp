@@ -26,6 +26,10 @@ class GyroTrack {
   // Beyond the samples the rate is held.
   std::vector<Eigen::Matrix3d> rotations(double t0, double step, size_t n) const;
   Eigen::Matrix3d rotation(double t0, double t1) const { return rotations(t0, t1 - t0, 2).back(); }
+  // R_t0_t1 with another estimate of the bias (rad/s, LiDAR frame).
+  Eigen::Matrix3d rotation(double t0, double t1, const Eigen::Vector3d& bias) const {
+    return rotations(t0, t1 - t0, 2, bias).back();
+  }
 
   // The registration put the LiDAR at rotations R_world_0 at t0 and R_world_1 at t1: the gyro's
   // rotation between them, off by its bias, moves the bias estimate a step towards agreement.
@@ -55,8 +59,9 @@ class GyroTrack {
   void forget_before(double t);
 
  private:
-  // The bias-free rate at time t in [samples_[k].stamp, samples_[k+1].stamp] (held beyond).
-  Eigen::Vector3d rate(size_t k, double t) const;
+  std::vector<Eigen::Matrix3d> rotations(double t0, double step, size_t n, const Eigen::Vector3d& bias) const;
+  // The rate less `bias` at time t in [samples_[k].stamp, samples_[k+1].stamp] (held beyond).
+  Eigen::Vector3d rate(size_t k, double t, const Eigen::Vector3d& bias) const;
   size_t index_before(double t) const;
 
   // Candidate shifts of the IMU's clock, kShiftStep apart, +-kShiftSteps of them.

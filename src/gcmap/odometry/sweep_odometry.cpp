@@ -10,6 +10,10 @@ namespace gcmap {
 
 namespace {
 
+// How far the gyro's bias estimates may be off (rad/s): the gyro's own, a low-pass of the
+// registered rotations, and the LiDAR-inertial state's.
+constexpr double kGyroBiasError = 2e-3, kInertialGyroBiasError = 3e-4;
+
 double mean_time(const PointCloud& cloud) {
   double sum = 0.0;
   for (const float t : cloud.times) sum += t;
@@ -41,6 +45,19 @@ void SweepOdometry::add_imu(const ImuSample& sample) {
   if (!use_imu_) return;
   gyro_.add(sample);
   if (inertial_enabled_) inertial_.add(sample);
+}
+
+std::optional<GyroRotation> SweepOdometry::gyro_rotation(double t0, double t1) const {
+  if (!use_imu_ || gyro_rejected_at_ || !(t1 > t0) || !gyro_.covers(t0, t1)) return std::nullopt;
+  const double dt = t1 - t0;
+  // The LiDAR-inertial state's bias is the better estimate where there is one: the gyro's own is a
+  // low-pass of the registered rotations.
+  const bool inertial = inertial_enabled_ && inertial_.ready();
+  const Eigen::Matrix3d R =
+      inertial ? gyro_.rotation(t0, t1, inertial_.T_imu_lidar().linear().transpose() * inertial_.state().bias.gyro)
+               : gyro_.rotation(t0, t1);
+  const double bias_error = inertial ? kInertialGyroBiasError : kGyroBiasError;
+  return GyroRotation{R, gyro_noise_ * gyro_noise_ * dt + std::pow(bias_error * dt, 2)};
 }
 
 std::optional<Eigen::Isometry3d> SweepOdometry::inertial_guess(double stamp) const {

@@ -47,6 +47,8 @@ class SweepOdometry {
   // imu.use. Sweeps the samples span are deskewed with the gyro's rotation.
   void add_imu(const ImuSample& sample);
   const Eigen::Vector3d& gyro_bias() const { return gyro_.bias(); }  // rad/s, LiDAR frame
+  // The gyro's rotation from t0 to t1, while the gyro is used and its samples span them.
+  std::optional<GyroRotation> gyro_rotation(double t0, double t1) const;
   std::optional<GyroTrack::ClockCheck> imu_clock_check() const { return gyro_.clock_check(); }
   // The frame from which the gyro is no longer used, its rates not following the registered
   // rotation (GyroTrack::disagrees); empty while it is.
