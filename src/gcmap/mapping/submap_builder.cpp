@@ -155,8 +155,9 @@ std::vector<Eigen::Isometry3d> SubmapBuilder::optimize_keyframes(const Eigen::Is
 // overlap almost entirely turn them against each other by tenths of a degree, where the gyro is
 // off by hundredths. Translations are left to the matching costs.
 void SubmapBuilder::add_gyro_factors(FactorGraph& graph) {
+  if (!(config_.gyro_weight > 0.0)) return;
   for (size_t b = 1; b < open_.size(); ++b) {
-    if (!open_[b].gyro || !(open_[b].gyro->variance > 0.0) || !(config_.gyro_weight > 0.0)) continue;
+    if (!open_[b].gyro || !(open_[b].gyro->variance > 0.0)) continue;
     GyroRotation weighted = *open_[b].gyro;
     weighted.variance /= config_.gyro_weight;
     graph.add(gyro_rotation_factor(static_cast<int>(b) - 1, static_cast<int>(b), weighted));

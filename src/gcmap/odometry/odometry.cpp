@@ -245,9 +245,8 @@ void Odometry::accept(const std::shared_ptr<const PointCloud>& frame, const Eige
     return;
   }
   // A model of one sweep is a poor target: its voxels hold a few points each, and a
-  // non-repetitive pattern samples other surfaces in the next sweep. A walker's first 10-20 frames
-  // registered against it, 0.1-1 m off each. Until the model is full, every registered frame
-  // joins it.
+  // non-repetitive pattern samples other surfaces in the next sweep, so a walker's first frames
+  // registered against it far off. Until the model is full, every registered frame joins it.
   const bool filling = !failed && static_cast<int>(keyframes_.size()) < config_.model_keyframes;
   const Eigen::Isometry3d delta = keyframes_.back().first.inverse() * T;
   if (filling || delta.translation().norm() > config_.keyframe_distance ||
