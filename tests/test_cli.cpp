@@ -3,9 +3,11 @@
 #include <cstdio>
 #include <fstream>
 #include <regex>
+#include <sstream>
 
 #include "gcmap/core/preprocess.hpp"
 #include "gcmap/io/file.hpp"
+#include "gcmap/io/imu_io.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/mapping/config.hpp"
 #include "gcmap/sim/synthetic.hpp"
@@ -59,6 +61,45 @@ TEST(Cli, SimulateRejectsConflictingRealism) {
   EXPECT_EQ(b.code, 2);
   EXPECT_NE(b.err.find("--realism: unknown key 'wobble'"), std::string::npos) << b.err;
   EXPECT_EQ(std::count(b.err.begin(), b.err.end(), '\n'), 1) << b.err;
+}
+
+TEST(Cli, SimulateTakesTheImuNoiseAsked) {
+  test::TempDir dir;
+  const std::string drive = "simulate --scenario city --frames 10 --imu -o ";
+  const RunResult exact = run_cli(drive + (dir / "exact") + " --imu-noise-free");
+  ASSERT_EQ(exact.code, 0) << exact.err;
+  const RunResult noisy = run_cli(drive + (dir / "noisy") + " --imu-gyro-noise 2.4e-4 --imu-accel-noise 5e-3");
+  ASSERT_EQ(noisy.code, 0) << noisy.err;
+  EXPECT_NE(test::slurp(dir / "noisy/scenario.json").find("\"gyro_noise_density\":0.00024"), std::string::npos);
+  // Less the exact samples and the true biases, what stays is the white noise: density / sqrt(dt).
+  const ImuStream a = read_imu_txt(dir / "exact/imu.txt"), b = read_imu_txt(dir / "noisy/imu.txt");
+  std::vector<ImuSample> bias;  // stamp, gyro, accel per line; no gravity in it to read the unit by
+  std::ifstream in(dir / "noisy/imu_bias.txt");
+  for (std::string line; std::getline(in, line);) {
+    ImuSample x;
+    if (line[0] != '#' && std::istringstream(line) >> x.stamp >> x.gyro.x() >> x.gyro.y() >> x.gyro.z() >> x.accel.x() >>
+                              x.accel.y() >> x.accel.z())
+      bias.push_back(x);
+  }
+  ASSERT_EQ(a.samples.size(), b.samples.size());
+  ASSERT_EQ(bias.size(), b.samples.size());
+  double gyro = 0.0, accel = 0.0;
+  for (size_t k = 0; k < b.samples.size(); ++k) {
+    gyro += (b.samples[k].gyro - a.samples[k].gyro - bias[k].gyro).squaredNorm();
+    accel += (b.samples[k].accel - a.samples[k].accel - bias[k].accel).squaredNorm();
+  }
+  const double n = 3.0 * static_cast<double>(b.samples.size());
+  EXPECT_NEAR(std::sqrt(gyro / n), 2.4e-4 * std::sqrt(200.0), 0.1 * 2.4e-4 * std::sqrt(200.0));
+  EXPECT_NEAR(std::sqrt(accel / n), 5e-3 * std::sqrt(200.0), 0.1 * 5e-3 * std::sqrt(200.0));
+
+  for (const auto& [args, message] : std::vector<std::pair<std::string, std::string>>{
+           {"--imu-gyro-noise 1e-4", "--imu-gyro-noise needs --imu"},
+           {"--imu --imu-noise-free --imu-accel-noise 0.01", "--imu-noise-free has no noise"},
+           {"--imu --imu-gyro-noise -1", "--imu-gyro-noise: expected 0 to 0.1"}}) {
+    const RunResult r = run_cli("simulate --scenario small --frames 2 -o " + (dir / "bad") + " " + args);
+    EXPECT_EQ(r.code, 2) << args;
+    EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
+  }
 }
 
 TEST(Cli, BadInputExitsTwoWithOneLine) {

@@ -18,7 +18,7 @@ namespace {
 struct ImuOptions {
   bool enabled = false, noise_free = false;
   sim::ImuSimConfig config;
-  CLI::Option *rate = nullptr, *offset = nullptr, *ideal = nullptr;
+  CLI::Option *rate = nullptr, *offset = nullptr, *ideal = nullptr, *gyro_noise = nullptr, *accel_noise = nullptr;
 
   void add(CLI::App* cmd) {
     cmd->add_flag("--imu", enabled,
@@ -30,13 +30,25 @@ struct ImuOptions {
                              "IMU stamps = true time + this (s): the IMU clock's offset from the LiDAR's")
                  ->capture_default_str();
     ideal = cmd->add_flag("--imu-noise-free", noise_free, "An exact IMU: no white noise, no bias");
+    gyro_noise = cmd->add_option("--imu-gyro-noise", config.density.gyro_noise,
+                                 "Gyro white noise density, rad/s/sqrt(Hz) (MEMS gyro datasheets give 0.5e-4 to 2.4e-4)")
+                     ->capture_default_str();
+    accel_noise =
+        cmd->add_option("--imu-accel-noise", config.density.accel_noise, "Accelerometer white noise density, m/s^2/sqrt(Hz)")
+            ->capture_default_str();
   }
   std::optional<sim::ImuSimConfig> resolve() {
-    if (!enabled && (rate->count() || offset->count() || ideal->count()))
-      throw Error("--imu-rate, --imu-time-offset and --imu-noise-free need --imu");
+    for (const CLI::Option* o : {rate, offset, ideal, gyro_noise, accel_noise})
+      if (!enabled && o->count()) throw Error(o->get_name() + " needs --imu");
     if (!enabled) return std::nullopt;
     if (!(config.rate >= 10.0 && config.rate <= 10000.0))
       throw Error("--imu-rate: expected 10 to 10000 Hz, got " + std::to_string(config.rate));
+    if (!(config.density.gyro_noise >= 0.0 && config.density.gyro_noise <= 0.1))
+      throw Error("--imu-gyro-noise: expected 0 to 0.1 rad/s/sqrt(Hz), got " + std::to_string(config.density.gyro_noise));
+    if (!(config.density.accel_noise >= 0.0 && config.density.accel_noise <= 1.0))
+      throw Error("--imu-accel-noise: expected 0 to 1 m/s^2/sqrt(Hz), got " + std::to_string(config.density.accel_noise));
+    if (noise_free && (gyro_noise->count() || accel_noise->count()))
+      throw Error("--imu-noise-free has no noise: --imu-gyro-noise and --imu-accel-noise contradict it");
     config.noise = !noise_free;
     return config;
   }
