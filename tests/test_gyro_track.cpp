@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/se3.hpp"
@@ -93,6 +94,34 @@ TEST(GyroTrack, ItsClockCheckFindsAnOffsetLeftOutOfTheConfig) {
     if (configured == 0.0) EXPECT_GT(c->rms_at_zero, 5.0 * c->rms_at_best);
   }
   EXPECT_FALSE(GyroTrack(ImuConfig{}).clock_check().has_value());
+}
+
+TEST(GyroTrack, MeasuresItsWhiteNoiseAgainstTheRegisteredRates) {
+  // A turn about one axis, so that registered mean rates are exact: angle(t) = 0.4 (1 - cos 1.5 t) / 1.5.
+  // The gyro has white noise of a known density; the mean rate of a 0.1 s window errs by
+  // density / sqrt(0.1 s) per axis, whatever the sample rate.
+  const auto angle = [](double t) { return 0.4 * (1.0 - std::cos(1.5 * t)) / 1.5; };
+  for (const double density : {2.4e-4, 1.7e-3}) {
+    Rig rig;
+    GyroTrack g(rig.config);
+    const Eigen::Matrix3d R_imu_lidar = rig.config.T_lidar_imu().linear().transpose();
+    std::mt19937_64 rng(7);
+    std::normal_distribution<double> white(0.0, density * std::sqrt(400.0));
+    for (double t = 0.0; t <= 12.0; t += 1.0 / 400.0) {
+      const Eigen::Vector3d n(white(rng), white(rng), white(rng));
+      g.add({t + rig.config.time_offset, R_imu_lidar * Eigen::Vector3d(0, 0, 0.4 * std::sin(1.5 * t)) + n,
+             Eigen::Vector3d(0, 0, 9.8)});
+    }
+    const auto window = [&](int k) {
+      g.compare_rate(0.1 * (k - 1), 0.1 * k, Eigen::Vector3d(0, 0, (angle(0.1 * k) - angle(0.1 * (k - 1))) / 0.1));
+    };
+    int k = 2;
+    for (; k < 2 + static_cast<int>(GyroTrack::kNoiseWindows) - 1; ++k) window(k);
+    EXPECT_FALSE(g.measured_noise().has_value());  // too few windows to tell yet
+    for (; k <= 115; ++k) window(k);
+    ASSERT_TRUE(g.measured_noise().has_value());
+    EXPECT_NEAR(*g.measured_noise(), density, 0.15 * density);
+  }
 }
 
 TEST(GyroTrack, DisagreesWhenTheConfigMisplacesTheImu) {

@@ -176,7 +176,8 @@ std::string clock_verdict(const GyroTrack::ClockCheck& c, double configured) {
       std::abs(c.best_shift) * 1e3, c.best_shift > 0 ? "later" : "earlier", c.rms_at_best, c.rms_at_zero, configured + c.best_shift);
 }
 
-std::string imu_line(const PipelineStats& s, double configured_offset) {
+std::string imu_line(const PipelineStats& s, const ImuConfig& imu) {
+  const double configured_offset = imu.time_offset, configured_noise = imu.noise.gyro_noise;
   const Eigen::Vector3d b = s.gyro_bias * 180.0 / M_PI;
   std::string line = fmt::format("IMU: {} samples; the gyro deskewed {} of {} sweeps; gyro bias estimate ({:.4f}, {:.4f}, {:.4f}) deg/s",
                                  s.imu_samples, s.gyro_deskewed, s.frames, b.x(), b.y(), b.z());
@@ -186,6 +187,11 @@ std::string imu_line(const PipelineStats& s, double configured_offset) {
                       "against rates of {:.3f} rad/s): check imu.roll_deg, pitch_deg and yaw_deg",
                       *s.gyro_rejected_at, s.imu_clock->rms_at_best, s.imu_clock->rms_rate);
   if (s.imu_clock) line += "; " + clock_verdict(*s.imu_clock, configured_offset);
+  if (s.imu_clock && s.deskew_gyro_noise < configured_noise)
+    line += fmt::format(
+        "; its white noise, measured against the registration, {:.2e} rad/s/sqrt(Hz) (imu.gyro_noise {:.2e}): the "
+        "deskewing weighs the gyro by the measured one",
+        s.deskew_gyro_noise, configured_noise);
   line += fmt::format("; the LiDAR-inertial state predicted {} sweeps", s.inertial_predicted);
   if (s.inertial_bias) {
     const Eigen::Vector3d bg = s.inertial_bias->gyro * 180.0 / M_PI, ba = s.inertial_bias->accel;
@@ -446,7 +452,7 @@ MapRunResult run_mapping(const MapRunOptions& o) {
   r.signal = signal;
   r.elevation_calibration = pipeline.elevation_calibration() != nullptr;
   if (!input.assumptions.gnss_fixes.empty()) r.gnss = gnss_line(pipeline.mapper().gnss_stats(), gnss_epsg(input.assumptions));
-  if (!input.assumptions.imu_samples.empty()) r.imu = imu_line(pipeline.stats(), o.config.imu.time_offset);
+  if (!input.assumptions.imu_samples.empty()) r.imu = imu_line(pipeline.stats(), o.config.imu);
   if (!signal && 2 * unusable > frames)
     r.failure = o.input + ": " + std::to_string(unusable) + " of its " + std::to_string(frames) +
                 " scans could not be mapped (unreadable, empty or too few points: see the warnings above)";

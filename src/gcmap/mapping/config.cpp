@@ -320,7 +320,9 @@ void visit_imu(Config& c, Visitor& v) {
   v("imu", "gyro_noise", c.imu.noise.gyro_noise,
     KeyDoc{"rad/s/sqrt(Hz)", 0, 1, "odometry/",
            "Gyro white noise density (default: a MEMS IMU built into a LiDAR, inflated for vibration). A sweep takes the gyro's "
-           "change of the turn rate only as far as it stands above this noise."});
+           "change of the turn rate only as far as it stands above this noise, or above the density measured against the "
+           "registered rotations where that is under half of it (after 5 s of sweeps; stats.json "
+           "imu.deskew_gyro_noise_rad_s_sqrt_hz)."});
   v("imu", "accel_noise", c.imu.noise.accel_noise,
     KeyDoc{"m/s^2/sqrt(Hz)", 0, 10, "odometry/",
            "Accelerometer white noise density as the estimation takes it: five times a MEMS IMU's built into a LiDAR, so that "

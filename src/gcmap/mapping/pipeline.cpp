@@ -205,6 +205,7 @@ PipelineStats MappingPipeline::stats() const {
   s.gyro_bias = odometry_.gyro_bias();
   s.imu_clock = odometry_.imu_clock_check();
   s.gyro_rejected_at = odometry_.gyro_rejected_at();
+  s.deskew_gyro_noise = odometry_.deskew_gyro_noise();
   s.gravity = mapper_.gravity_stats();
   s.preprocess = preprocess_ms_;
   s.odometry = odometry_ms_;

@@ -53,6 +53,7 @@ struct PipelineStats {
   Eigen::Vector3d gyro_bias = Eigen::Vector3d::Zero();  // rad/s, LiDAR frame, the last estimate
   std::optional<GyroTrack::ClockCheck> imu_clock;       // the gyro's rates against the registered ones
   std::optional<int> gyro_rejected_at;                  // see SweepOdometry::gyro_rejected_at
+  double deskew_gyro_noise = 0.0;                       // rad/s/sqrt(Hz), at the end (SweepOdometry::deskew_gyro_noise)
   GravityStats gravity;                                 // the accelerometer in the global graph
   TimingStats preprocess, odometry;                     // preprocess overlaps the other stages in run()
   MapperStats mapper;

@@ -104,8 +104,11 @@ Json stats_json(const MappingPipeline& pipeline) {
       clock["rate_rms_at_best_shift_rad_s"] = ps.imu_clock->rms_at_best;
       clock["registered_rate_rms_rad_s"] = ps.imu_clock->rms_rate;
       clock["windows"] = ps.imu_clock->windows;
+      // What explains that rms as white gyro noise (the registration's error included).
+      clock["gyro_noise_density_rad_s_sqrt_hz"] = ps.imu_clock->noise_density;
       imu["clock_check"] = clock;
     }
+    imu["deskew_gyro_noise_rad_s_sqrt_hz"] = ps.deskew_gyro_noise;  // imu.gyro_noise, or the measured density under half of it
     const GravityStats& g = ps.gravity;
     Json gravity = Json::object(), ab = Json::array();
     for (int k = 0; k < 3; ++k) ab.push_back(g.accel_bias[k]);

@@ -104,6 +104,7 @@ void GyroTrack::compare_rate(double t0, double t1, const Eigen::Vector3d& regist
     if (j == kShiftSteps) registered_gyro_ += registered * (sum / steps).transpose();
   }
   rate_sse_ += registered.squaredNorm();
+  inverse_span_sum_ += 1.0 / (t1 - t0);
   ++shift_windows_;
 }
 
@@ -115,8 +116,14 @@ std::optional<GyroTrack::ClockCheck> GyroTrack::clock_check() const {
   c.rms_at_best = std::sqrt(*best / shift_windows_);
   c.rms_at_zero = std::sqrt(shift_sse_[kShiftSteps] / shift_windows_);
   c.rms_rate = std::sqrt(rate_sse_ / shift_windows_);
+  c.noise_density = std::sqrt(shift_sse_[kShiftSteps] / (3.0 * inverse_span_sum_));
   c.windows = shift_windows_;
   return c;
+}
+
+std::optional<double> GyroTrack::measured_noise() const {
+  if (shift_windows_ < kNoiseWindows) return std::nullopt;
+  return clock_check()->noise_density;
 }
 
 Eigen::Matrix3d GyroTrack::best_rotation() const {

@@ -44,10 +44,17 @@ class GyroTrack {
     double best_shift = 0.0;                      // s to add to imu.time_offset for the best agreement
     double rms_at_zero = 0.0, rms_at_best = 0.0;  // rad/s
     double rms_rate = 0.0;                        // rad/s: of the registered rates themselves
+    // rad/s/sqrt(Hz): the white noise density that explains rms_at_zero: a window of T seconds
+    // averages it to density / sqrt(T) per axis. The registration's own error counts in it, so it
+    // is an upper bound on the gyro's.
+    double noise_density = 0.0;
     size_t windows = 0;
   };
   // Empty before any window was compared.
   std::optional<ClockCheck> clock_check() const;
+  // The clock check's noise_density once it has kNoiseWindows windows (5 s of sweeps).
+  std::optional<double> measured_noise() const;
+  static constexpr size_t kNoiseWindows = 50;
   // The gyro does not follow the registered rotation at any shift (the rotation of T_lidar_imu
   // wrong, another sensor's IMU): after 15 windows, its rates miss the registered ones by more
   // than half their size and by more than 0.02 rad/s, and its axes turned by more than 20 deg
@@ -69,6 +76,7 @@ class GyroTrack {
   static constexpr double kShiftStep = 1e-3;
   std::array<double, 2 * kShiftSteps + 1> shift_sse_{};
   double rate_sse_ = 0.0;
+  double inverse_span_sum_ = 0.0;                              // 1/s, over the windows
   Eigen::Matrix3d registered_gyro_ = Eigen::Matrix3d::Zero();  // sum of registered * gyro^T at no shift
   size_t shift_windows_ = 0;
 

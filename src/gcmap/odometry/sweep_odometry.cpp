@@ -60,6 +60,14 @@ std::optional<GyroRotation> SweepOdometry::gyro_rotation(double t0, double t1) c
   return GyroRotation{R, gyro_noise_ * gyro_noise_ * dt + std::pow(bias_error * dt, 2)};
 }
 
+double SweepOdometry::deskew_gyro_noise() const {
+  // The measurement carries the registration's error and wanders as the drive goes on: near
+  // imu.gyro_noise it is no reason to leave the configured density.
+  constexpr double kClearlyBelow = 0.5;
+  const std::optional<double> measured = gyro_.measured_noise();
+  return measured && *measured < kClearlyBelow * gyro_noise_ ? *measured : gyro_noise_;
+}
+
 std::optional<Eigen::Isometry3d> SweepOdometry::inertial_guess(double stamp) const {
   if (!inertial_enabled_ || gyro_rejected_at_) return std::nullopt;
   return inertial_.predict(stamp);
@@ -257,7 +265,7 @@ std::optional<SweepRevision> SweepOdometry::revise_previous(const SweepReference
   }
   if (shift < 0.01) return std::nullopt;
   m.gyro = p.motion.gyro, m.gyro_correction = p.motion.gyro_correction;
-  if (m.gyro) m.weigh_gyro(gyro_noise_);
+  if (m.gyro) m.weigh_gyro(deskew_gyro_noise());
   auto cloud = std::make_shared<PointCloud>(p.raw);
   m.deskew(*cloud);
   // The frame's pose moves onto the curve as well: the keyframe's starting point in the local
@@ -300,7 +308,7 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
     const bool degenerate = e.quality.conditioning() < kDegenerateConditioning;
     if (auto registered = registered_mean(T_world_mean, stamp + t_mean, degenerate)) mean = *registered;
     m = sweep_motion(mean, stamp, gyro);
-    if (gyro) m.gyro_correction = gyro_correction(T_world_mean, stamp + t_mean), m.weigh_gyro(gyro_noise_);
+    if (gyro) m.gyro_correction = gyro_correction(T_world_mean, stamp + t_mean), m.weigh_gyro(deskew_gyro_noise());
     T = T_world_mean * m.T_stamp(t_mean).inverse();
   }
   // The gyro's rotations compose with the last pose's; through a run of failures nothing registered

@@ -50,6 +50,10 @@ class SweepOdometry {
   // The gyro's rotation from t0 to t1, while the gyro is used and its samples span them.
   std::optional<GyroRotation> gyro_rotation(double t0, double t1) const;
   std::optional<GyroTrack::ClockCheck> imu_clock_check() const { return gyro_.clock_check(); }
+  // The gyro noise density (rad/s/sqrt(Hz)) that weighs its deviation within a sweep: imu.gyro_noise,
+  // or the one measured against the registered rotations where that is under half of it (a better
+  // gyro than the config assumes: only the data tells how much of the deviation is signal).
+  double deskew_gyro_noise() const;
   // The frame from which the gyro is no longer used, its rates not following the registered
   // rotation (GyroTrack::disagrees); empty while it is.
   std::optional<int> gyro_rejected_at() const { return gyro_rejected_at_; }
