@@ -102,7 +102,7 @@ TEST(GyroTrack, MeasuresItsWhiteNoiseAgainstTheRegisteredRates) {
   // density / sqrt(0.1 s) per axis, whatever the sample rate.
   const auto angle = [](double t) { return 0.4 * (1.0 - std::cos(1.5 * t)) / 1.5; };
   for (const double density : {2.4e-4, 1.7e-3}) {
-    Rig rig;
+    const Rig rig;
     GyroTrack g(rig.config);
     const Eigen::Matrix3d R_imu_lidar = rig.config.T_lidar_imu().linear().transpose();
     std::mt19937_64 rng(7);
