@@ -321,7 +321,7 @@ void visit_imu(Config& c, Visitor& v) {
     KeyDoc{"rad/s/sqrt(Hz)", 0, 1, "odometry/",
            "Gyro white noise density (default: a MEMS IMU built into a LiDAR, inflated for vibration). A sweep takes the gyro's "
            "change of the turn rate only as far as it stands above this noise, or above the density measured against the "
-           "registered rotations where that is under half of it (after 5 s of sweeps; stats.json "
+           "registered rotations where that is under 0.8 of it (after 5 s of sweeps; stats.json "
            "imu.deskew_gyro_noise_rad_s_sqrt_hz)."});
   v("imu", "accel_noise", c.imu.noise.accel_noise,
     KeyDoc{"m/s^2/sqrt(Hz)", 0, 10, "odometry/",

@@ -108,7 +108,7 @@ Json stats_json(const MappingPipeline& pipeline) {
       clock["gyro_noise_density_rad_s_sqrt_hz"] = ps.imu_clock->noise_density;
       imu["clock_check"] = clock;
     }
-    imu["deskew_gyro_noise_rad_s_sqrt_hz"] = ps.deskew_gyro_noise;  // imu.gyro_noise, or the measured density under half of it
+    imu["deskew_gyro_noise_rad_s_sqrt_hz"] = ps.deskew_gyro_noise;  // imu.gyro_noise, or the measured density under 0.8 of it
     const GravityStats& g = ps.gravity;
     Json gravity = Json::object(), ab = Json::array();
     for (int k = 0; k < 3; ++k) ab.push_back(g.accel_bias[k]);

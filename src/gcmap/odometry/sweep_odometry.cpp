@@ -63,7 +63,7 @@ std::optional<GyroRotation> SweepOdometry::gyro_rotation(double t0, double t1) c
 double SweepOdometry::deskew_gyro_noise() const {
   // The measurement carries the registration's error and wanders as the drive goes on: near
   // imu.gyro_noise it is no reason to leave the configured density.
-  constexpr double kClearlyBelow = 0.5;
+  constexpr double kClearlyBelow = 0.8;
   const std::optional<double> measured = gyro_.measured_noise();
   return measured && *measured < kClearlyBelow * gyro_noise_ ? *measured : gyro_noise_;
 }

@@ -51,7 +51,7 @@ class SweepOdometry {
   std::optional<GyroRotation> gyro_rotation(double t0, double t1) const;
   std::optional<GyroTrack::ClockCheck> imu_clock_check() const { return gyro_.clock_check(); }
   // The gyro noise density (rad/s/sqrt(Hz)) that weighs its deviation within a sweep: imu.gyro_noise,
-  // or the one measured against the registered rotations where that is under half of it (a better
+  // or the one measured against the registered rotations where that is under 0.8 of it (a better
   // gyro than the config assumes: only the data tells how much of the deviation is signal).
   double deskew_gyro_noise() const;
   // The frame from which the gyro is no longer used, its rates not following the registered
