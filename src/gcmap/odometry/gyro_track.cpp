@@ -116,14 +116,16 @@ std::optional<GyroTrack::ClockCheck> GyroTrack::clock_check() const {
   c.rms_at_best = std::sqrt(*best / shift_windows_);
   c.rms_at_zero = std::sqrt(shift_sse_[kShiftSteps] / shift_windows_);
   c.rms_rate = std::sqrt(rate_sse_ / shift_windows_);
-  c.noise_density = std::sqrt(shift_sse_[kShiftSteps] / (3.0 * inverse_span_sum_));
+  c.noise_density = noise_density();
   c.windows = shift_windows_;
   return c;
 }
 
+double GyroTrack::noise_density() const { return std::sqrt(shift_sse_[kShiftSteps] / (3.0 * inverse_span_sum_)); }
+
 std::optional<double> GyroTrack::measured_noise() const {
   if (shift_windows_ < kNoiseWindows) return std::nullopt;
-  return clock_check()->noise_density;
+  return noise_density();
 }
 
 Eigen::Matrix3d GyroTrack::best_rotation() const {

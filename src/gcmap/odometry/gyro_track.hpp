@@ -67,6 +67,8 @@ class GyroTrack {
 
  private:
   std::vector<Eigen::Matrix3d> rotations(double t0, double step, size_t n, const Eigen::Vector3d& bias) const;
+  // ClockCheck::noise_density, without the search over shifts (asked at every deskewing pass).
+  double noise_density() const;
   // The rate less `bias` at time t in [samples_[k].stamp, samples_[k+1].stamp] (held beyond).
   Eigen::Vector3d rate(size_t k, double t, const Eigen::Vector3d& bias) const;
   size_t index_before(double t) const;
