@@ -145,5 +145,30 @@ TEST(InertialTrack, RegistrationInformationDropsWhatTheScanCannotSee) {
   EXPECT_EQ(registration_information(Matrix6d::Zero()), Matrix6d::Zero());
 }
 
+TEST(InertialTrack, ATranslationTheScanCannotSeeDoesNotPullThePose) {
+  // A tunnel's registration along a turned axis, coupled to the rotation: its information has no
+  // translation along the axis at all. A pose slid 2 m along it, its rotation 1 mrad off, must cost
+  // exactly what the rotation alone costs.
+  const Eigen::Vector3d axis = so3_exp(Eigen::Vector3d(0.3, -0.2, 0.5)).col(2);
+  // H = G^T G: rows that never move along the axis, and one that does, faintly.
+  Eigen::Matrix<double, 7, 6> G;
+  for (int i = 0; i < 6; ++i)
+    for (int j = 0; j < 6; ++j) G(i, j) = std::sin(1.3 * i + 0.7 * j + 0.1 * i * j) * (j < 3 ? 2000.0 : 1000.0);
+  G.topRightCorner<6, 3>() -= G.topRightCorner<6, 3>() * axis * axis.transpose();
+  G.row(6) << 0.0, 0.0, 0.0, 10.0 * axis.transpose();
+  const Matrix6d H = G.transpose() * G;
+  const Eigen::Isometry3d T_imu_lidar = Rig().config.T_lidar_imu().inverse();
+  const Eigen::Isometry3d measured = se3_exp((Vector6d() << 0.1, 0.2, -0.3, 40.0, -3.0, 1.0).finished());
+  const LidarPoseFactor f(0, measured, registration_information(H), T_imu_lidar);
+  const auto error = [&](double slide) {
+    NavState s;
+    s.T_world_imu = measured * se3_exp((Vector6d() << 1e-3, 0.0, 0.0, slide * axis).finished()) * T_imu_lidar.inverse();
+    const NavState* states[2] = {&s, nullptr};
+    return f.error(states);
+  };
+  ASSERT_GT(error(0.0), 0.1);
+  EXPECT_NEAR(error(2.0), error(0.0), 1e-9 * error(0.0));
+}
+
 }  // namespace
 }  // namespace gcmap

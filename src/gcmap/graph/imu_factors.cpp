@@ -1,6 +1,7 @@
 #include "gcmap/graph/imu_factors.hpp"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -14,6 +15,17 @@ namespace {
 template <int N>
 Eigen::Matrix<double, N, N> sqrt_of(const Eigen::Matrix<double, N, N>& information) {
   return information.llt().matrixU();
+}
+
+// The same for an information that may be singular by design (a registration's degenerate
+// translations dropped): a Cholesky factor's pivot there is rounding noise, and dividing by it
+// spreads the noise into the rows after it, so that a direction without information would pull.
+// There the eigendecomposition keeps the null space null.
+Matrix6d sqrt_of_singular(const Matrix6d& information) {
+  const Eigen::SelfAdjointEigenSolver<Matrix6d> eig(0.5 * (information + information.transpose()));
+  constexpr double kSingular = 1e-9;  // of the largest eigenvalue
+  if (eig.eigenvalues()(0) > kSingular * eig.eigenvalues()(5)) return sqrt_of<6>(information);
+  return eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal() * eig.eigenvectors().transpose();
 }
 }  // namespace
 
@@ -117,7 +129,7 @@ NavLinearization NavPriorFactor::linearize(const NavState* const* states) const 
 
 LidarPoseFactor::LidarPoseFactor(int key, const Eigen::Isometry3d& T_world_lidar, const Matrix6d& information,
                                  const Eigen::Isometry3d& T_imu_lidar)
-    : T_world_lidar_(T_world_lidar), T_imu_lidar_(T_imu_lidar), sqrt_information_(sqrt_of<6>(information)) {
+    : T_world_lidar_(T_world_lidar), T_imu_lidar_(T_imu_lidar), sqrt_information_(sqrt_of_singular(information)) {
   keys_ = {key, -1};
 }
 

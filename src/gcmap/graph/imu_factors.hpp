@@ -83,7 +83,8 @@ class NavPriorFactor : public NavFactor {
 };
 
 // A LiDAR pose measured (a registration): r = log(T_measured^-1 T_world_imu T_imu_lidar), [rotation,
-// translation], whitened by the square root of its 6x6 information.
+// translation], whitened by the square root of its 6x6 information, which may be singular (a
+// translation the scan cannot see): such a direction costs nothing.
 class LidarPoseFactor : public NavFactor {
  public:
   LidarPoseFactor(int key, const Eigen::Isometry3d& T_world_lidar, const Matrix6d& information,
