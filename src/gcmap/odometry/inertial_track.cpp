@@ -24,6 +24,9 @@ constexpr double kStartRotation = 0.002, kStartPosition = 0.01, kStartVelocity =
 // are not. A quarter of it weighed the registrations of a 64-beam drive and of a handheld
 // Mid-360-like sensor both about right against the IMU (docs/benchmarks.md).
 constexpr double kHessianScale = 0.25;
+// How far (in sigmas of the registration and the IMU's prediction together) a registered pose may
+// stray from the prediction before it counts less.
+constexpr double kGate = 5.0;
 // Gravity's direction in the odometry frame: known to this at the start (rad, a gravity window over
 // a second of registered sweeps) and wandering by this (rad/sqrt(s)) as the odometry's roll and
 // pitch do. Walks of 0, 0.001 and 0.003 did alike on the vehicles' drives; 0.001 mapped the
@@ -99,6 +102,25 @@ void Window::system(const std::vector<NavState>& states, const Eigen::Vector2d& 
   const Vector17d r = prior_residual(states[0], theta, &J);
   H.topLeftCorner<17, 17>() += J.transpose() * prior_information * J;
   b.head<17>() += J.transpose() * prior_information * r;
+}
+
+// A registration the IMU's prediction contradicts (its pitch slid with its model, or it fell
+// metres short along a canyon) counts less, down to nothing: above kGate its information is
+// scaled by kGate^2 / chi2, where chi2 weighs its disagreement with the prediction by the two
+// covariances together (the prediction's from the window without the registration).
+double registration_weight(const Window& w, const std::vector<NavState>& states, const Eigen::Isometry3d& T_world_lidar,
+                           const Matrix6d& information, const Eigen::Isometry3d& T_imu_lidar) {
+  Eigen::MatrixXd H;
+  Eigen::VectorXd b;
+  w.system(states, Eigen::Vector2d::Zero(), H, b);
+  const Eigen::MatrixXd covariance = H.ldlt().solve(Eigen::MatrixXd::Identity(H.rows(), H.cols()));
+  const Matrix6d A = adjoint(T_imu_lidar.inverse());  // IMU pose tangent to the LiDAR's
+  const Matrix6d P = A * covariance.block<6, 6>(17, 17) * A.transpose();
+  const Vector6d r = se3_log(T_world_lidar.inverse() * states[1].T_world_imu * T_imu_lidar);
+  // (P + information^-1)^-1 without inverting the information, which may be singular.
+  const Matrix6d S_inv = information - information * (P.inverse() + information).ldlt().solve(information);
+  const double chi2 = r.dot(S_inv * r);
+  return chi2 > kGate * kGate ? kGate * kGate / chi2 : 1.0;
 }
 
 // Levenberg-Marquardt over the window's states and tilt.
@@ -246,7 +268,10 @@ void InertialTrack::update(double time, const Eigen::Isometry3d* T_world_lidar, 
   auto imu = std::make_unique<ImuFactor>(0, 1, std::move(pre), gravity_);
   w.imu = imu.get();
   w.factors.push_back(std::move(imu));
-  if (T_world_lidar) w.factors.push_back(std::make_unique<LidarPoseFactor>(1, *T_world_lidar, *information, T_imu_lidar_));
+  if (T_world_lidar) {
+    const double weight = registration_weight(w, states, *T_world_lidar, *information, T_imu_lidar_);
+    w.factors.push_back(std::make_unique<LidarPoseFactor>(1, *T_world_lidar, weight * *information, T_imu_lidar_));
+  }
   Eigen::Vector2d theta = Eigen::Vector2d::Zero();
   optimize(w, states, theta, 10);
   Eigen::MatrixXd H;
