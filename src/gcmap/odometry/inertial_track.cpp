@@ -115,6 +115,7 @@ double registration_weight(const Window& w, const std::vector<NavState>& states,
   w.system(states, Eigen::Vector2d::Zero(), H, b);
   const Eigen::MatrixXd covariance = H.ldlt().solve(Eigen::MatrixXd::Identity(H.rows(), H.cols()));
   const Matrix6d A = adjoint(T_imu_lidar.inverse());  // IMU pose tangent to the LiDAR's
+  // State 1's pose, after the tilt (2) and state 0 (15).
   const Matrix6d P = A * covariance.block<6, 6>(17, 17) * A.transpose();
   const Vector6d r = se3_log(T_world_lidar.inverse() * states[1].T_world_imu * T_imu_lidar);
   // (P + information^-1)^-1 without inverting the information, which may be singular.

@@ -2,8 +2,9 @@
 // The odometry's LiDAR-inertial state: pose, velocity and IMU biases at each registered sweep,
 // estimated by a fixed-lag smoother over the last two sweeps (the older one marginalized into a
 // prior) from a preintegrated IMU factor, the bias random walk and the registration's pose weighted
-// by its Hessian. It predicts where the next sweep starts, translation included; its pose is the
-// frame's, so the IMU carries what a registration cannot see (a tunnel) or place (a fast turn).
+// by its Hessian (less where the IMU's prediction contradicts it). It predicts where the next sweep
+// starts, translation included; its pose is the frame's, so the IMU carries what a registration
+// cannot see (a tunnel) or place (a fast turn).
 // Gravity is found in the odometry's own frame (the first scan's) from the first registered second
 // (the map frame is unchanged), and its direction stays an unknown of the smoother: the
 // odometry's roll and pitch wander from the first scan's, and gravity held fixed in its frame would
