@@ -113,10 +113,10 @@ double registration_weight(const Window& w, const std::vector<NavState>& states,
   Eigen::MatrixXd H;
   Eigen::VectorXd b;
   w.system(states, Eigen::Vector2d::Zero(), H, b);
-  const Eigen::MatrixXd covariance = H.ldlt().solve(Eigen::MatrixXd::Identity(H.rows(), H.cols()));
+  // The covariance of state 1's pose (after the tilt (2) and state 0 (15)): its six columns only.
+  const Eigen::MatrixXd columns = H.ldlt().solve(Eigen::MatrixXd::Identity(H.rows(), H.cols()).middleCols<6>(17));
   const Matrix6d A = adjoint(T_imu_lidar.inverse());  // IMU pose tangent to the LiDAR's
-  // State 1's pose, after the tilt (2) and state 0 (15).
-  const Matrix6d P = A * covariance.block<6, 6>(17, 17) * A.transpose();
+  const Matrix6d P = A * columns.middleRows<6>(17) * A.transpose();
   const Vector6d r = se3_log(T_world_lidar.inverse() * states[1].T_world_imu * T_imu_lidar);
   // (P + information^-1)^-1 without inverting the information, which may be singular.
   const Matrix6d S_inv = information - information * (P.inverse() + information).ldlt().solve(information);
