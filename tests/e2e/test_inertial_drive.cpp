@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <regex>
 
+#include "gcmap/cuda/cuda_backend.hpp"
 #include "gcmap/eval/trajectory_metrics.hpp"
 #include "gcmap/io/trajectory_io.hpp"
 #include "test_util.hpp"
@@ -164,6 +165,25 @@ TEST(InertialDrive, AWalkWhoseRegistrationJumpsKeepsTheStateListening) {
   EXPECT_LE(failures, 3.0);
   EXPECT_GE(ate, 0.0);
   EXPECT_LT(ate, 0.5);
+}
+
+// The same walk on the GPU: the odometry's registrations and the global graph's matching costs run
+// on the device there, the LiDAR-inertial state on the host on either. The walk is chaotic at this
+// edge, so the two runs are held to the truth, not to each other's bytes.
+TEST(GpuParityInertialDrive, AHandheldWalkMapsOnTheGpuAsOnTheCpu) {
+  std::string why;
+  if (!cuda::device_available(&why)) GTEST_SKIP() << "no CUDA device (" << why << ")";
+  TempDir dir;
+  const CliRun sim = run_gcmap("simulate -o " + dir / "walk" + " --scenario handheld --frames 300 --imu");
+  ASSERT_EQ(sim.code, 0) << sim.err;
+  for (const std::string device : {"cuda", "cpu"}) {
+    const WalkRun w = map_walk(dir / "walk", dir / device, " --device " + device);
+    std::printf("handheld on the %s: %.0f odometry failures, ATE %.3f m\n", device.c_str(), w.failures, w.ate);
+    EXPECT_NE(w.stats.find("\"device\":\"" + device), std::string::npos) << device;  // "cuda: <the GPU's name>"
+    EXPECT_EQ(w.failures, 0.0) << device;
+    EXPECT_GE(w.ate, 0.0) << device;
+    EXPECT_LT(w.ate, 0.3) << device;
+  }
 }
 
 }  // namespace
