@@ -330,6 +330,31 @@ TEST(GyroRotationFactor, HoldsTheRelativeRotationAndLeavesTheTranslation) {
   EXPECT_LT(test::translation_error(v[1], T1), 1e-6);
 }
 
+// With the odometry's translation: the rotation weighs as above, the translation (in pose 0's
+// frame) by translation_sigma per axis.
+TEST(GyroMotionFactor, HoldsTheRelativeTranslationAtItsSigma) {
+  const GyroRotation gyro{so3_exp(Eigen::Vector3d(0.0, 0.1, 0.2)), 1e-6};
+  const Eigen::Vector3d t_0_1(0.5, -0.1, 0.05);
+  const auto f = gyro_motion_factor(0, 1, gyro, t_0_1, 0.05);
+  const Eigen::Isometry3d T0 = se3_exp((Vector6d() << 0.3, -0.2, 0.1, 4.0, 5.0, 6.0).finished());
+  Eigen::Isometry3d T1 = T0;
+  T1.linear() = T0.linear() * gyro.R;
+  T1.translation() = T0 * t_0_1;
+  const Eigen::Isometry3d* at[2] = {&T0, &T1};
+  EXPECT_NEAR(f->trial_error(at), 0.0, 1e-12);
+  for (int axis = 0; axis < 3; ++axis) {
+    Eigen::Isometry3d moved = T1;
+    moved.translation() += 0.02 * T0.linear().col(axis);  // 2 cm along pose 0's axis
+    const Eigen::Isometry3d* shifted[2] = {&T0, &moved};
+    EXPECT_NEAR(f->trial_error(shifted), std::pow(0.02 / 0.05, 2), 1e-6) << axis;
+  }
+  Eigen::Isometry3d turned = T1;
+  turned.linear() = T1.linear() * so3_exp(Eigen::Vector3d(1e-3, 0.0, 0.0));
+  turned.translation() = T1.translation();
+  const Eigen::Isometry3d* off[2] = {&T0, &turned};
+  EXPECT_NEAR(f->trial_error(off), 1e-6 / 1e-6, 1e-6);
+}
+
 // A long drive can leave a pose whose only factors say nothing at the estimate: a loop's shifted
 // Tukey kernel at zero weight (here: measurement met exactly, 5 from the kernel's peak). That pose
 // stays where it is; the others are optimized (city three times in a row stopped here once).

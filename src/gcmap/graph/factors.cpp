@@ -93,4 +93,15 @@ std::shared_ptr<RelativePoseFactor> gyro_rotation_factor(int key_i, int key_j, c
   return std::make_shared<RelativePoseFactor>(key_i, key_j, measured, information);
 }
 
+std::shared_ptr<RelativePoseFactor> gyro_motion_factor(int key_i, int key_j, const GyroRotation& gyro,
+                                                       const Eigen::Vector3d& t_i_j, double translation_sigma) {
+  Eigen::Isometry3d measured = Eigen::Isometry3d::Identity();
+  measured.linear() = gyro.R;
+  measured.translation() = t_i_j;
+  Matrix6d information = Matrix6d::Zero();  // [rotation; translation]
+  information.topLeftCorner<3, 3>() = Eigen::Matrix3d::Identity() / gyro.variance;
+  information.bottomRightCorner<3, 3>() = Eigen::Matrix3d::Identity() / (translation_sigma * translation_sigma);
+  return std::make_shared<RelativePoseFactor>(key_i, key_j, measured, information);
+}
+
 }  // namespace gcmap

@@ -124,5 +124,9 @@ class RelativePoseFactor : public Factor {
 // The gyro's rotation from pose i to pose j (in pose i's frame) as their relative rotation, over
 // its variance; their relative translation is left free.
 std::shared_ptr<RelativePoseFactor> gyro_rotation_factor(int key_i, int key_j, const GyroRotation& gyro);
+// The same with the relative translation t_i_j (in pose i's frame) measured too, at translation_sigma
+// (m) per axis.
+std::shared_ptr<RelativePoseFactor> gyro_motion_factor(int key_i, int key_j, const GyroRotation& gyro,
+                                                       const Eigen::Vector3d& t_i_j, double translation_sigma);
 
 }  // namespace gcmap

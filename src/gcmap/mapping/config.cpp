@@ -198,6 +198,11 @@ void visit_odometry_local(Config& c, Visitor& v) {
            "With an IMU, the gyro's rotation between consecutive keyframes is a factor of their submap, weighted this many times "
            "what the gyro's noise (imu.gyro_noise) gives it: the matching costs count every point as independent and outweigh "
            "it otherwise, while they turn sparse sweeps against each other by tenths of a degree. 0: no such factor."});
+  v("local", "inertial_translation_sigma", c.local.inertial_translation_sigma,
+    KeyDoc{"m", 0, 100, "mapping/",
+           "With the LiDAR-inertial state (imu.inertial_odometry), its translation between consecutive keyframes joins the "
+           "gyro's rotation in their factor, at this sigma per axis: it holds keyframes along what their matching costs hardly "
+           "see (a corridor) and against sweeps a fast turn distorted, and counts little elsewhere. 0: no such translation."});
 }
 
 template <typename Config, typename Visitor>

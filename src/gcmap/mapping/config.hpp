@@ -46,6 +46,9 @@ struct LocalMappingConfig {
   // The gyro's rotation between consecutive keyframes counts this many times what its noise gives
   // it: the matching costs count every point as independent (docs/pipeline.md).
   double gyro_weight = 10.0;
+  // m per axis: the LiDAR-inertial odometry's translation between consecutive keyframes, in the
+  // same factor; 0 (or without the LiDAR-inertial state): the translation is the matching costs' alone.
+  double inertial_translation_sigma = 0.05;
 };
 
 struct GlobalMappingConfig {

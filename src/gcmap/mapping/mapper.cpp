@@ -18,12 +18,19 @@ const MappingConfig& validated(const MappingConfig& config) {
   config.validate();
   return config;
 }
+
+// The odometry's translation is the LiDAR-inertial state's only with imu.inertial_odometry.
+LocalMappingConfig local_config(const MappingConfig& config) {
+  LocalMappingConfig local = config.local;
+  if (!config.imu.inertial_odometry) local.inertial_translation_sigma = 0.0;
+  return local;
+}
 }  // namespace
 
 Mapper::Mapper(const MappingConfig& config, std::shared_ptr<LinearizationBackend> backend)
     : config_(validated(config)),
       backend_(backend ? std::move(backend) : std::make_shared<CpuBackend>()),
-      local_(config_.local, config_.global, config_.loop, backend_),
+      local_(local_config(config_), config_.global, config_.loop, backend_),
       loops_(config_.loop),
       global_(config_.global, config_.loop, backend_, config_.gnss, config_.imu) {}
 

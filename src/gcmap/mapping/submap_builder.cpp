@@ -153,14 +153,22 @@ std::vector<Eigen::Isometry3d> SubmapBuilder::optimize_keyframes(const Eigen::Is
 
 // The gyro's rotation between consecutive keyframes: the matching costs of sparse sweeps that
 // overlap almost entirely turn them against each other by tenths of a degree, where the gyro is
-// off by hundredths. Translations are left to the matching costs.
+// off by hundredths. With the LiDAR-inertial state, its translation joins them
+// (local.inertial_translation_sigma): a corridor's keyframes slid by metres where the matching
+// costs could not see along it.
 void SubmapBuilder::add_gyro_factors(FactorGraph& graph) {
   if (!(config_.gyro_weight > 0.0)) return;
   for (size_t b = 1; b < open_.size(); ++b) {
     if (!open_[b].gyro || !(open_[b].gyro->variance > 0.0)) continue;
     GyroRotation weighted = *open_[b].gyro;
     weighted.variance /= config_.gyro_weight;
-    graph.add(gyro_rotation_factor(static_cast<int>(b) - 1, static_cast<int>(b), weighted));
+    const int i = static_cast<int>(b) - 1, j = static_cast<int>(b);
+    if (config_.inertial_translation_sigma > 0.0) {
+      const Eigen::Vector3d t_i_j = (open_[i].T_odom.inverse() * open_[j].T_odom).translation();
+      graph.add(gyro_motion_factor(i, j, weighted, t_i_j, config_.inertial_translation_sigma));
+    } else {
+      graph.add(gyro_rotation_factor(i, j, weighted));
+    }
     ++stats_.gyro_factors;
   }
 }
