@@ -31,6 +31,7 @@ struct ImuConfig {
   bool use = true;
   bool level_map = true;  // the accelerometer's gravity levels the global graph (graph/gravity_window.hpp)
   bool inertial_odometry = true;  // IMU-propagated states predict the sweeps (odometry/inertial_track.hpp)
+  bool smooth_rotations = true;   // the trajectory's rotations refined with the gyro (graph/rotation_smoother.hpp)
   // The IMU frame in the LiDAR frame: a translation (m) and roll, pitch, yaw (deg, applied in that
   // order about the LiDAR's fixed axes).
   double x = 0.0, y = 0.0, z = 0.0, roll_deg = 0.0, pitch_deg = 0.0, yaw_deg = 0.0;

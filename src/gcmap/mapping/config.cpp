@@ -339,6 +339,11 @@ void visit_imu(Config& c, Visitor& v) {
            "smoother), whose pose the sweep takes: the IMU predicts where each sweep starts, translation included, and holds "
            "what the registration cannot see or place (a tunnel, a fast turn). false: the sweep's pose is its registration's, "
            "the gyro predicts the rotation, the last motion the translation."});
+  v("imu", "smooth_rotations", c.imu.smooth_rotations,
+    KeyDoc{"-", 0, 0, "mapping/",
+           "The trajectory's rotations are refined with the gyro's rotations between consecutive frames, where they disagree "
+           "with them more than the gyro's noise explains (a sparse sensor in hand: its registrations turn the frames by tenths "
+           "of a degree). Positions and the map stay; stats.json imu.rotation_smoothing says what was measured."});
   v("imu", "level_map", c.imu.level_map,
     KeyDoc{"-", 0, 0, "mapping/",
            "The accelerometer's gravity, measured over every submap's last 4 s of odometry, holds the global graph level: the "

@@ -245,11 +245,17 @@ Eigen::Isometry3d Mapper::output_from_world() const {
 
 Eigen::Isometry3d Mapper::frame_pose(int frame) const { return normalized(output_from_world() * world_pose(frame)); }
 
-std::vector<Eigen::Isometry3d> Mapper::trajectory() const {
+std::pair<std::vector<Eigen::Isometry3d>, RotationSmoothing> Mapper::smoothed_trajectory() const {
   const Eigen::Isometry3d T0_inv = output_from_world();
   std::vector<Eigen::Isometry3d> out(frames_.size());
-  for (size_t f = 0; f < frames_.size(); ++f) out[f] = normalized(T0_inv * world_pose(static_cast<int>(f)));
-  return out;
+  std::vector<std::optional<GyroRotation>> gyro(frames_.size());
+  for (size_t f = 0; f < frames_.size(); ++f) {
+    out[f] = normalized(T0_inv * world_pose(static_cast<int>(f)));
+    gyro[f] = frames_[f].gyro;
+  }
+  RotationSmoothing smoothing;
+  if (config_.imu.use && config_.imu.smooth_rotations) smoothing = smooth_rotations(out, gyro);
+  return {std::move(out), smoothing};
 }
 
 namespace {

@@ -6,6 +6,7 @@
 #include <utility>
 #include <vector>
 
+#include "gcmap/graph/rotation_smoother.hpp"
 #include "gcmap/mapping/global_mapper.hpp"
 #include "gcmap/mapping/loop_detector.hpp"
 #include "gcmap/mapping/submap_builder.hpp"
@@ -97,7 +98,10 @@ class Mapper {
   // World pose of a frame (skipped frames via odometry from their anchor keyframe), expressed so
   // that frame 0 is the identity.
   Eigen::Isometry3d frame_pose(int frame) const;
-  std::vector<Eigen::Isometry3d> trajectory() const;
+  // Every frame's pose as frame_pose gives it, the rotations then smoothed with the gyro where
+  // imu.smooth_rotations and the frames are noisier than the gyro (graph/rotation_smoother.hpp).
+  std::vector<Eigen::Isometry3d> trajectory() const { return smoothed_trajectory().first; }
+  RotationSmoothing rotation_smoothing() const { return smoothed_trajectory().second; }
   const std::vector<Submap>& submaps() const { return global_.submaps(); }
   // In the submap frame of submap 0 (see output_from_world()).
   const Eigen::Isometry3d& submap_pose(int id) const { return global_.pose(id); }
@@ -131,6 +135,7 @@ class Mapper {
   std::optional<std::pair<int, Eigen::Isometry3d>> in_submap(int frame, const Submap& inserting) const;
   Eigen::Isometry3d keyframe_world(int keyframe) const;
   Eigen::Isometry3d world_pose(int frame) const;
+  std::pair<std::vector<Eigen::Isometry3d>, RotationSmoothing> smoothed_trajectory() const;
 
   MappingConfig config_;
   std::shared_ptr<LinearizationBackend> backend_;

@@ -73,6 +73,15 @@ std::string map_frame_description(const Mapper& mapper) {
   return "the first frame";
 }
 
+Json rotation_smoothing_json(const RotationSmoothing& s) {
+  Json j = Json::object();
+  j["applied"] = s.applied;
+  j["windows"] = s.windows;                  // runs of frames the trajectory was measured against the gyro over
+  j["frame_noise_deg"] = s.frame_noise_deg;  // per frame and axis, before smoothing
+  j["gyro_noise_deg"] = s.gyro_noise_deg;    // between consecutive frames, per axis
+  return j;
+}
+
 Json stats_json(const MappingPipeline& pipeline) {
   const PipelineStats ps = pipeline.stats();
   const MapperStats& ms = ps.mapper;
@@ -118,6 +127,7 @@ Json stats_json(const MappingPipeline& pipeline) {
     gravity["accel_bias_m_s2"] = ab;           // IMU frame, the estimate at the end
     gravity["rms_tilt_deg"] = g.rms_tilt_deg;  // of the windows' up against the map's z
     imu["gravity"] = gravity;
+    imu["rotation_smoothing"] = rotation_smoothing_json(pipeline.mapper().rotation_smoothing());
     stats["imu"] = imu;
   }
   stats["seconds"] = ps.seconds;
