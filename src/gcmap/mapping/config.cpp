@@ -202,7 +202,8 @@ void visit_odometry_local(Config& c, Visitor& v) {
     KeyDoc{"m", 0, 100, "mapping/",
            "With the LiDAR-inertial state (imu.inertial_odometry), its translation between consecutive keyframes joins the "
            "gyro's rotation in their factor, at this sigma per axis: it holds keyframes along what their matching costs hardly "
-           "see (a corridor) and against sweeps a fast turn distorted, and counts little elsewhere. 0: no such translation."});
+           "see (a corridor) and against sweeps a fast turn distorted, and counts little elsewhere. 0 (or local.gyro_weight "
+           "0): no such translation."});
 }
 
 template <typename Config, typename Visitor>
