@@ -193,6 +193,9 @@ std::string imu_line(const PipelineStats& s, const ImuConfig& imu) {
         "deskewing weighs the gyro by the measured one",
         s.deskew_gyro_noise, configured_noise);
   line += fmt::format("; the LiDAR-inertial state predicted {} sweeps", s.inertial_predicted);
+  if (s.inertial_deskewed > 0)
+    line += fmt::format(" and deskewed {} with its motion (the registration's rates scattering over twice the gyro's noise)",
+                        s.inertial_deskewed);
   if (s.inertial_bias) {
     const Eigen::Vector3d bg = s.inertial_bias->gyro * 180.0 / M_PI, ba = s.inertial_bias->accel;
     line += fmt::format(" (its biases at the end: gyro ({:.4f}, {:.4f}, {:.4f}) deg/s, accelerometer ({:.3f}, {:.3f}, {:.3f}) m/s^2",

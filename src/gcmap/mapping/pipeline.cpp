@@ -144,6 +144,7 @@ MappingPipeline::Tracked MappingPipeline::track_frame(PreparedScan scan, std::op
   f.deskew_shift = e.deskew_shift;
   gyro_deskewed_ += e.gyro ? 1 : 0;
   inertial_predicted_ += e.inertial ? 1 : 0;
+  inertial_deskewed_ += e.inertial_motion ? 1 : 0;
   if (!gyro_warned_ && odometry_.gyro_rejected_at()) {
     spdlog::warn("scan {}: the gyro's rates do not follow the LiDAR's registered rotation: the IMU is no longer used "
                  "(check imu.roll_deg, pitch_deg and yaw_deg)",
@@ -200,6 +201,7 @@ PipelineStats MappingPipeline::stats() const {
   s.imu_samples = imu_samples_;
   s.gyro_deskewed = gyro_deskewed_;
   s.inertial_predicted = inertial_predicted_;
+  s.inertial_deskewed = inertial_deskewed_;
   s.inertial_bias = odometry_.inertial_bias();
   s.inertial_gravity_turn_deg = odometry_.inertial_gravity_turn_deg();
   s.gyro_bias = odometry_.gyro_bias();

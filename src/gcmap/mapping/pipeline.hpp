@@ -48,6 +48,7 @@ struct PipelineStats {
   size_t imu_samples = 0;                               // IMU samples given (add_imu)
   size_t gyro_deskewed = 0;                             // sweeps deskewed with the gyro's rotation
   size_t inertial_predicted = 0;                        // sweeps started from the LiDAR-inertial state (imu.inertial_odometry)
+  size_t inertial_deskewed = 0;                         // sweeps deskewed with that state's motion
   std::optional<ImuBias> inertial_bias;                 // that state's biases at the end (IMU frame)
   std::optional<double> inertial_gravity_turn_deg;      // how far its gravity turned from its start's
   Eigen::Vector3d gyro_bias = Eigen::Vector3d::Zero();  // rad/s, LiDAR frame, the last estimate
@@ -167,7 +168,8 @@ class MappingPipeline {
   std::vector<FrameStatus> statuses_;
   std::vector<FrameFigures> frame_figures_;  // track_frame's
   std::vector<Eigen::Isometry3d> odometry_poses_;
-  size_t unusable_scans_ = 0, odometry_failures_ = 0, gyro_deskewed_ = 0, inertial_predicted_ = 0;  // track_frame's
+  size_t unusable_scans_ = 0, odometry_failures_ = 0, gyro_deskewed_ = 0, inertial_predicted_ = 0,
+         inertial_deskewed_ = 0;  // track_frame's
   size_t imu_samples_ = 0;
   bool gyro_warned_ = false;
   size_t unusable_frames_ = 0;  // map_frame's

@@ -98,6 +98,8 @@ Json stats_json(const MappingPipeline& pipeline) {
     imu["gyro_bias_rad_s"] = bias;  // LiDAR frame, the estimate at the end
     if (ps.gyro_rejected_at) imu["gyro_rejected_at_frame"] = *ps.gyro_rejected_at;
     imu["inertial_predicted_sweeps"] = ps.inertial_predicted;
+    // Where the registered rates scatter over twice the gyro's noise (a sensor in hand).
+    imu["inertial_deskewed_sweeps"] = ps.inertial_deskewed;
     imu["submap_gyro_factors"] = ms.local.gyro_factors;  // between consecutive keyframes of a submap
     if (ps.inertial_bias) {
       Json gyro = Json::array(), accel = Json::array();

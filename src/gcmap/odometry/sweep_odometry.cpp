@@ -13,6 +13,9 @@ namespace {
 // How far the gyro's bias estimates may be off (rad/s): the gyro's own, a low-pass of the
 // registered rotations, and the LiDAR-inertial state's.
 constexpr double kGyroBiasError = 2e-3, kInertialGyroBiasError = 3e-4;
+// Registered rotation rates that miss the gyro's by this many times its configured noise: the
+// registration is the noisier (a sensor in hand), and the LiDAR-inertial state's motion deskews.
+constexpr double kNoisierRegistration = 2.0;
 
 double mean_time(const PointCloud& cloud) {
   double sum = 0.0;
@@ -66,6 +69,11 @@ double SweepOdometry::deskew_gyro_noise() const {
   constexpr double kClearlyBelow = 0.8;
   const std::optional<double> measured = gyro_.measured_noise();
   return measured && *measured < kClearlyBelow * gyro_noise_ ? *measured : gyro_noise_;
+}
+
+bool SweepOdometry::registration_noisier() const {
+  const std::optional<double> measured = gyro_.measured_noise();
+  return measured && *measured > kNoisierRegistration * gyro_noise_;
 }
 
 std::optional<Eigen::Isometry3d> SweepOdometry::inertial_guess(double stamp) const {
@@ -290,6 +298,7 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
   const std::shared_ptr<const GyroSweep> gyro = gyro_sweep(raw, stamp);
   if (gyro && !inertial) T.linear() = last_->first.linear() * gyro_.rotation(last_->second, stamp);
   MeanVelocity mean{se3_log(last_->first.inverse() * T) / dt, stamp - 0.5 * dt};
+  e.inertial_motion = inertial && registration_noisier();
   SweepMotion m = sweep_motion(mean, stamp, gyro);
   for (int pass = 0; pass < 4; ++pass) {
     *cloud = raw;
@@ -306,7 +315,10 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
     }
     const Eigen::Isometry3d T_world_mean = T_world_stamp * m.T_stamp(t_mean);
     const bool degenerate = e.quality.conditioning() < kDegenerateConditioning;
-    if (auto registered = registered_mean(T_world_mean, stamp + t_mean, degenerate)) mean = *registered;
+    // Registrations noisier than the IMU (a sensor in hand) leave the state's motion in place.
+    const std::optional<MeanVelocity> registered =
+        e.inertial_motion ? std::nullopt : registered_mean(T_world_mean, stamp + t_mean, degenerate);
+    if (registered) mean = *registered;
     m = sweep_motion(mean, stamp, gyro);
     if (gyro) m.gyro_correction = gyro_correction(T_world_mean, stamp + t_mean), m.weigh_gyro(deskew_gyro_noise());
     T = T_world_mean * m.T_stamp(t_mean).inverse();

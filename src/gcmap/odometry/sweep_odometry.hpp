@@ -26,12 +26,13 @@ struct SweepRevision {
 struct SweepEstimate {
   Eigen::Isometry3d T_world_frame = Eigen::Isometry3d::Identity();  // at the scan stamp
   bool deskewed = false;
-  bool gyro = false;            // deskewed with the IMU's rotation rates
-  bool inertial = false;        // started from the LiDAR-inertial state's prediction
-  bool failed = false;          // registration rejected (see Odometry::estimate): placed by the prediction
-  bool lost = false;            // the last of failed frames in a row: the next usable frame starts a new model
-  RegistrationQuality quality;  // of the registration that placed the frame
-  double deskew_shift = 0.0;    // m: how far deskewing moved the points, on average (0 when not deskewed)
+  bool gyro = false;             // deskewed with the IMU's rotation rates
+  bool inertial = false;         // started from the LiDAR-inertial state's prediction
+  bool inertial_motion = false;  // deskewed with that state's motion, not the registered one
+  bool failed = false;           // registration rejected (see Odometry::estimate): placed by the prediction
+  bool lost = false;             // the last of failed frames in a row: the next usable frame starts a new model
+  RegistrationQuality quality;   // of the registration that placed the frame
+  double deskew_shift = 0.0;     // m: how far deskewing moved the points, on average (0 when not deskewed)
   // At the second frame, the first sweep (it entered the odometry's model smeared); later, the
   // previous sweep, once this one is registered (see SweepOdometry::revise_previous).
   std::optional<SweepRevision> revised;
@@ -79,6 +80,8 @@ class SweepOdometry {
   SweepEstimate finish(SweepEstimate e, double stamp);
   // The IMU-propagated pose at `stamp`, when the inertial state is known and trusted.
   std::optional<Eigen::Isometry3d> inertial_guess(double stamp) const;
+  // The registered rotation rates scatter clearly more than the gyro's noise explains.
+  bool registration_noisier() const;
 
   // A registered mean velocity [omega; rho] between two instants, and the middle of them.
   struct MeanVelocity {
