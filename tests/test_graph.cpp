@@ -110,6 +110,37 @@ TEST(MatchingCostFactor, AssociationsKeptPerOptimizationAreCountedAndReleased) {
   EXPECT_EQ(kept_associations(), before);
 }
 
+// The targets out of the source's reach are left out before any lookup; what is kept, and each
+// overlap, must be what looking up every target's points gives.
+TEST(OverlappingTargets, SkippingTargetsOutOfReachKeepsWhatLookupsFind) {
+  const ScanNode node = make_scan_node(voxel_downsample(make_structured_scene(8000, 11), 0.25), 1.0);
+  const auto source = std::make_shared<const PointCloud>(*node.cloud);
+  std::vector<std::shared_ptr<const GaussianVoxelMap>> targets;
+  std::vector<Eigen::Isometry3d> T_target_source;
+  // Shifted along x in 0.5 m steps across the edge of reach (the scene's ground fills its box, so
+  // points meet voxels as soon as the boxes meet), and far away.
+  for (double x = 0.0; x < 1100.0; x += x < 70.0 ? 0.5 : 500.0) {
+    targets.push_back(node.voxels);
+    T_target_source.push_back(Eigen::Isometry3d(Eigen::Translation3d(x, 0.0, 0.0)));
+  }
+  CpuBackend backend;
+  for (double min_overlap : {0.0, 1e-4, 0.025, 0.3}) {
+    std::vector<TargetOverlap> expected;
+    for (size_t k = 0; k < targets.size(); ++k) {
+      const double o = overlap(*source, *targets[k], T_target_source[k]);
+      if (o >= min_overlap) expected.push_back({static_cast<int>(k), o});
+    }
+    const std::vector<TargetOverlap> kept = overlapping_targets(backend, source, targets, T_target_source, min_overlap);
+    ASSERT_EQ(kept.size(), expected.size()) << "min_overlap " << min_overlap;
+    for (size_t i = 0; i < kept.size(); ++i) {
+      EXPECT_EQ(kept[i].index, expected[i].index);
+      EXPECT_EQ(kept[i].overlap, expected[i].overlap);
+    }
+    if (min_overlap == 0.0) EXPECT_EQ(kept.size(), targets.size());
+    if (min_overlap == 1e-4) EXPECT_LT(kept.size(), targets.size()) << "the far targets have no overlap";
+  }
+}
+
 TEST(RelativePoseFactor, JacobianMatchesNumeric) {
   std::mt19937_64 rng(9);
   const Eigen::Isometry3d Ti = test::random_pose(rng, 1.0, 5.0), Tj = test::random_pose(rng, 1.0, 5.0);

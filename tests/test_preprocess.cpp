@@ -208,5 +208,52 @@ TEST(Overlap, FractionOfSourcePointsInOccupiedVoxels) {
   EXPECT_DOUBLE_EQ(overlap(source, map, shift), 0.0);
 }
 
+TEST(VoxelMap, BoundsAreTheBoxOfTheVoxelsCells) {
+  PointCloud c = make_structured_scene(4000, 3);
+  c.covs.assign(c.size(), Eigen::Matrix3f::Identity() * 0.01f);
+  GaussianVoxelMap map(0.5);
+  EXPECT_TRUE(map.bounds().isEmpty());
+  const Eigen::Isometry3d T = Eigen::Translation3d(300.0, -40.0, 2.0) * Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ());
+  map.insert(c, T);
+  map.finalize();
+  Eigen::Vector3i lo = map.coord(0), hi = map.coord(0);
+  for (size_t v = 0; v < map.num_voxels(); ++v) {
+    lo = lo.cwiseMin(map.coord(static_cast<int>(v)));
+    hi = hi.cwiseMax(map.coord(static_cast<int>(v)));
+  }
+  EXPECT_TRUE(map.bounds().min().isApprox(lo.cast<float>() * 0.5f));
+  EXPECT_TRUE(map.bounds().max().isApprox((hi + Eigen::Vector3i::Ones()).cast<float>() * 0.5f));
+  for (const Eigen::Vector3f& p : c.points) EXPECT_TRUE(map.bounds().contains((T * p.cast<double>()).cast<float>()));
+}
+
+TEST(Overlap, BoxesRuleOutOnlyPosesNoSourcePointCanReach) {
+  PointCloud t = make_structured_scene(4000, 4), source = make_structured_scene(3000, 5);
+  t.covs.assign(t.size(), Eigen::Matrix3f::Identity() * 0.01f);
+  GaussianVoxelMap map(1.0);
+  map.insert(t);
+  map.finalize();
+  const Eigen::AlignedBox3f box = bounding_box(source);
+  ASSERT_FALSE(box.isEmpty());
+  for (const Eigen::Vector3f& p : source.points) ASSERT_TRUE(box.contains(p));
+  // Sweeps of the source out of the target's box along several headings, in 0.25 m steps, turned
+  // as it goes: wherever the boxes rule a pose out, no point may hit a voxel there.
+  int ruled_out = 0;
+  for (int heading = 0; heading < 8; ++heading) {
+    const Eigen::Vector3d dir =
+        Eigen::AngleAxisd(0.8 * heading, Eigen::Vector3d::UnitZ()) * Eigen::Vector3d(1.0, 0.0, 0.1 * heading - 0.3);
+    for (double d = 0.0; d < 80.0; d += 0.25) {
+      const Eigen::Isometry3d T =
+          Eigen::Translation3d(d * dir.normalized()) * Eigen::AngleAxisd(0.05 * d, Eigen::Vector3d::UnitZ());
+      if (may_overlap(box, map, T)) continue;
+      ++ruled_out;
+      EXPECT_EQ(overlap(source, map, T), 0.0) << "heading " << heading << ", " << d << " m";
+    }
+  }
+  EXPECT_GT(ruled_out, 8 * 100) << "out of 8 x 320 poses, the farther half at least";
+  EXPECT_TRUE(may_overlap(box, map, Eigen::Isometry3d::Identity()));
+  EXPECT_FALSE(may_overlap(Eigen::AlignedBox3f(), map, Eigen::Isometry3d::Identity()));
+  EXPECT_FALSE(may_overlap(box, GaussianVoxelMap(1.0), Eigen::Isometry3d::Identity()));
+}
+
 }  // namespace
 }  // namespace gcmap

@@ -103,6 +103,12 @@ void GaussianVoxelMap::finalize() {
     means_[v] = (sum_means_[v] / counts_[v]).cast<float>();
     covs_[v] = (sum_covs_[v] / counts_[v]).cast<float>();
   }
+  bounds_.setEmpty();
+  const float res = static_cast<float>(resolution_);
+  for (const Eigen::Vector3i& c : coords_) {
+    bounds_.extend(c.cast<float>() * res);
+    bounds_.extend((c + Eigen::Vector3i::Ones()).cast<float>() * res);
+  }
   finalized_ = true;
   if (updates_ == Updates::once) {
     std::vector<Eigen::Vector3d>().swap(sum_means_);
@@ -127,6 +133,16 @@ double overlap(const PointCloud& source, const GaussianVoxelMap& target, const E
       },
       [](size_t a, size_t b) { return a + b; });
   return static_cast<double>(hits) / static_cast<double>(source.size());
+}
+
+bool may_overlap(const Eigen::AlignedBox3f& source_box, const GaussianVoxelMap& target, const Eigen::Isometry3d& T) {
+  if (source_box.isEmpty() || target.bounds().isEmpty()) return false;
+  Eigen::AlignedBox3d reach;  // the source box's corners in the target frame
+  const Eigen::AlignedBox3d box = source_box.cast<double>();
+  for (int k = 0; k < 8; ++k) reach.extend(T * box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(k)));
+  const Eigen::Vector3d spare = Eigen::Vector3d::Constant(target.resolution());
+  const Eigen::AlignedBox3d voxels(target.bounds().min().cast<double>() - spare, target.bounds().max().cast<double>() + spare);
+  return reach.intersects(voxels);
 }
 
 }  // namespace gcmap

@@ -82,6 +82,9 @@ class GaussianVoxelMap {
   int count(int v) const { return counts_[v]; }
   Eigen::Vector3i coord(int v) const { return coords_[v]; }
 
+  // The box of the voxels' cells (map frame; empty until finalize()): no point outside it finds a voxel.
+  const Eigen::AlignedBox3f& bounds() const { return bounds_; }
+
   const std::vector<Eigen::Vector3f>& means() const { return means_; }
   const std::vector<Eigen::Matrix3f>& covs() const { return covs_; }
   size_t memory_bytes() const;  // heap held, capacities included
@@ -109,10 +112,16 @@ class GaussianVoxelMap {
   std::vector<Eigen::Matrix3d> sum_covs_;
   std::vector<Eigen::Vector3f> means_;
   std::vector<Eigen::Matrix3f> covs_;
+  Eigen::AlignedBox3f bounds_;
 };
 
 // Paper Eq. 7-8: fraction of the source points that fall into an occupied target voxel when mapped
 // by T_target_source. Asymmetric: overlap(source -> target).
 double overlap(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& T_target_source);
+
+// False only where no point of a source within source_box (its own frame) can fall into a target
+// voxel under T_target_source, so that its overlap is 0 without looking up a point. Conservative: the
+// boxes are compared with a voxel to spare, for the float rounding of the lookups.
+bool may_overlap(const Eigen::AlignedBox3f& source_box, const GaussianVoxelMap& target, const Eigen::Isometry3d& T_target_source);
 
 }  // namespace gcmap

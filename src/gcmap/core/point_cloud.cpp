@@ -52,4 +52,10 @@ PointCloud transformed(const PointCloud& cloud, const Eigen::Isometry3d& T) {
   return out;
 }
 
+Eigen::AlignedBox3f bounding_box(const PointCloud& cloud) {
+  Eigen::AlignedBox3f box;  // empty
+  for (const Eigen::Vector3f& p : cloud.points) box.extend(p);
+  return box;
+}
+
 }  // namespace gcmap

@@ -36,4 +36,7 @@ struct PointCloud {
 // Returns the cloud with every point (and covariance) mapped by T.
 PointCloud transformed(const PointCloud& cloud, const Eigen::Isometry3d& T);
 
+// The smallest axis-aligned box holding every point (empty for an empty cloud).
+Eigen::AlignedBox3f bounding_box(const PointCloud& cloud);
+
 }  // namespace gcmap

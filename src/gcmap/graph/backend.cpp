@@ -44,11 +44,22 @@ void CpuBackend::trial_errors(std::span<Factor* const> factors, std::span<const 
 std::vector<TargetOverlap> overlapping_targets(LinearizationBackend& backend, const std::shared_ptr<const PointCloud>& source,
                                                std::span<const std::shared_ptr<const GaussianVoxelMap>> targets,
                                                std::span<const Eigen::Isometry3d> T_target_source, double min_overlap) {
-  std::vector<double> overlaps(targets.size());
-  backend.overlaps(source, targets, T_target_source, overlaps);
+  // Most submaps of a long drive lie out of reach of a new one: their boxes say so without a lookup.
+  const Eigen::AlignedBox3f source_box = bounding_box(*source);
+  std::vector<int> reach;
+  std::vector<std::shared_ptr<const GaussianVoxelMap>> reach_targets;
+  std::vector<Eigen::Isometry3d> reach_T;
+  for (size_t k = 0; k < targets.size(); ++k) {
+    if (min_overlap > 0.0 && !may_overlap(source_box, *targets[k], T_target_source[k])) continue;
+    reach.push_back(static_cast<int>(k));
+    reach_targets.push_back(targets[k]);
+    reach_T.push_back(T_target_source[k]);
+  }
+  std::vector<double> overlaps(reach.size());
+  backend.overlaps(source, reach_targets, reach_T, overlaps);
   std::vector<TargetOverlap> kept;
-  for (size_t k = 0; k < targets.size(); ++k)
-    if (overlaps[k] >= min_overlap) kept.push_back({static_cast<int>(k), overlaps[k]});
+  for (size_t r = 0; r < reach.size(); ++r)
+    if (overlaps[r] >= min_overlap) kept.push_back({reach[r], overlaps[r]});
   return kept;
 }
 
