@@ -228,6 +228,13 @@ TEST(Mapping, BadInputGivesOneLineErrors) {
   std::string err;
   EXPECT_EQ(run("map " + (dir / "empty") + " -o " + (dir / "out"), &err), 2);
   EXPECT_NE(err.find("no .bin, .pcd or .ply scans"), std::string::npos) << err;
+  // A recording's export, times.txt beside its scans' folder: the error names that folder.
+  std::filesystem::create_directories(dir / "export/scans");
+  for (const std::string name : {"000000.pcd", "000001.pcd"}) std::ofstream(dir / ("export/scans/" + name)) << "";
+  EXPECT_EQ(run("map " + (dir / "export") + " -o " + (dir / "out"), &err), 2);
+  EXPECT_NE(err.find("no .bin, .pcd or .ply scans (" + (dir / "export/scans") + " holds 2 scans: give that folder)"),
+            std::string::npos)
+      << err;
 
   std::ofstream(dir / "bad.yaml") << "local:\n  th_maxx: 0.9\n";
   EXPECT_EQ(run("config --config " + (dir / "bad.yaml"), &err), 2);

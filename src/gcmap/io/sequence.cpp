@@ -21,25 +21,45 @@ bool is_kitti_layout(const std::string& dir) {
   return fs::is_directory(fs::path(dir) / "velodyne", ec);
 }
 
+namespace {
+
+bool is_scan_file(const fs::directory_entry& e) {
+  if (!e.is_regular_file()) return false;
+  std::string ext = e.path().extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
+  return ext == ".bin" || ext == ".pcd" || ext == ".ply";
+}
+
+// What to give instead of a folder without scans: the bags in it (e.g. what `gcmap simulate
+// --format mcap` writes) or its subfolders that hold scans (a recording's export with its
+// times.txt beside a `scans/`).
+std::string what_is_there(const fs::path& dir) {
+  std::error_code ec;
+  std::string bags, folders;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    if (is_bag_path(e.path().string())) bags += (bags.empty() ? "" : ", ") + e.path().string();
+    if (!e.is_directory(ec)) continue;
+    size_t scans = 0;
+    for (const auto& f : fs::directory_iterator(e.path(), ec)) scans += is_scan_file(f);
+    if (scans) folders += (folders.empty() ? "" : ", ") + e.path().string() + " holds " + std::to_string(scans) + " scans";
+  }
+  if (!bags.empty()) return " (bags: " + bags + ")";
+  if (!folders.empty()) return " (" + folders + ": give that folder)";
+  return "";
+}
+
+}  // namespace
+
 std::vector<std::string> list_scan_files(const std::string& dir) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw Error(dir + ": not a folder");
   const fs::path root = is_kitti_layout(dir) ? fs::path(dir) / "velodyne" : fs::path(dir);
   std::vector<std::string> files;
-  for (const auto& e : fs::directory_iterator(root, ec)) {
-    if (!e.is_regular_file()) continue;
-    std::string ext = e.path().extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
-    if (ext == ".bin" || ext == ".pcd" || ext == ".ply") files.push_back(e.path().string());
-  }
+  for (const auto& e : fs::directory_iterator(root, ec))
+    if (is_scan_file(e)) files.push_back(e.path().string());
   if (ec) throw Error(dir + ": cannot list (" + ec.message() + ")");
   std::sort(files.begin(), files.end());
-  if (files.empty()) {
-    std::string bags;  // e.g. what `gcmap simulate --format mcap` writes
-    for (const auto& e : fs::directory_iterator(dir, ec))
-      if (is_bag_path(e.path().string())) bags += (bags.empty() ? "" : ", ") + e.path().string();
-    throw Error(root.string() + ": no .bin, .pcd or .ply scans" + (bags.empty() ? "" : " (bags: " + bags + ")"));
-  }
+  if (files.empty()) throw Error(root.string() + ": no .bin, .pcd or .ply scans" + what_is_there(dir));
   return files;
 }
 
