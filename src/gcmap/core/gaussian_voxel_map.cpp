@@ -3,6 +3,8 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
 
+#include <limits>
+
 #include "gcmap/core/error.hpp"
 
 namespace gcmap {
@@ -99,16 +101,16 @@ void GaussianVoxelMap::finalize() {
   if (has_empty_) drop_empty_voxels();
   means_.resize(coords_.size());
   covs_.resize(coords_.size());
+  Eigen::Vector3i lo = Eigen::Vector3i::Constant(std::numeric_limits<int>::max()), hi = -lo;
   for (size_t v = 0; v < coords_.size(); ++v) {
     means_[v] = (sum_means_[v] / counts_[v]).cast<float>();
     covs_[v] = (sum_covs_[v] / counts_[v]).cast<float>();
+    lo = lo.cwiseMin(coords_[v]);
+    hi = hi.cwiseMax(coords_[v]);
   }
-  bounds_.setEmpty();
   const float res = static_cast<float>(resolution_);
-  for (const Eigen::Vector3i& c : coords_) {
-    bounds_.extend(c.cast<float>() * res);
-    bounds_.extend((c + Eigen::Vector3i::Ones()).cast<float>() * res);
-  }
+  bounds_.setEmpty();
+  if (!coords_.empty()) bounds_ = {lo.cast<float>() * res, (hi + Eigen::Vector3i::Ones()).cast<float>() * res};
   finalized_ = true;
   if (updates_ == Updates::once) {
     std::vector<Eigen::Vector3d>().swap(sum_means_);
