@@ -245,6 +245,10 @@ void visit_global(Config& c, Visitor& v) {
   v("global", "linear_solver", c.global.linear_solver,
     KeyDoc{"-", 0, 0, "graph/",
            "Sparse solver of each Levenberg-Marquardt step: eigen, cholmod (when built with SuiteSparse) or auto."});
+  v("global", "max_new_factors", c.global.max_new_factors,
+    KeyDoc{"-", 0, 100000, "mapping/",
+           "Matching-cost factors a new submap gets at most: to its predecessor and the past submaps it overlaps most; 0: "
+           "to every one above th_min."});
   v("global", "factor_source_points", c.global.factor_source_points,
     KeyDoc{"-", 1000, 10000000, "mapping/",
            "Points of a submap used as the source of its matching-cost factors and overlaps (an even subsample; the target voxel "

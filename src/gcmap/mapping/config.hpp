@@ -72,6 +72,10 @@ struct GlobalMappingConfig {
   // Points of a submap used as the source of its matching-cost factors and overlaps (an even
   // subsample; target voxel maps keep every point). The global graph's cost is linear in it.
   int factor_source_points = 20000;
+  // Matching-cost factors a new submap gets at most: to its predecessor and the past submaps it
+  // overlaps most (0: to every one above th_min). A revisit overlaps many consecutive past submaps
+  // that tell much the same; each factor costs every later optimization.
+  int max_new_factors = 12;
 };
 
 // Localization on a prior map (gcmap localize).

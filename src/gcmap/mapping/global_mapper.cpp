@@ -312,6 +312,17 @@ FactorGraph GlobalMapper::without_revisit_factors() const {
   return steer;
 }
 
+std::vector<TargetOverlap> strongest_overlaps(std::vector<TargetOverlap> kept, const std::vector<int>& submaps, int keep, int n) {
+  if (n <= 0 || kept.size() <= static_cast<size_t>(n)) return kept;
+  const auto rank = [&](const TargetOverlap& t) { return std::pair(submaps[t.index] == keep, t.overlap); };
+  std::vector<TargetOverlap> by_rank = kept;
+  std::stable_sort(by_rank.begin(), by_rank.end(), [&](const auto& a, const auto& b) { return rank(a) > rank(b); });
+  std::vector<char> chosen(submaps.size(), 0);
+  for (int k = 0; k < n; ++k) chosen[by_rank[k].index] = 1;
+  std::erase_if(kept, [&](const TargetOverlap& t) { return !chosen[t.index]; });
+  return kept;
+}
+
 int GlobalMapper::connect_overlapping(int id, int first) {
   const Submap& cur = submaps_[id];
   std::vector<int> candidates;
@@ -324,7 +335,8 @@ int GlobalMapper::connect_overlapping(int id, int first) {
     T_target_source.push_back(values_.at(j).inverse() * values_.at(id));
   }
   const std::vector<TargetOverlap> kept =
-      overlapping_targets(*backend_, cur.factor_source, targets, T_target_source, config_.th_min);
+      strongest_overlaps(overlapping_targets(*backend_, cur.factor_source, targets, T_target_source, config_.th_min), candidates,
+                         id - 1, config_.max_new_factors);
   for (const TargetOverlap& t : kept) {
     const int j = candidates[t.index];
     if (config_.factor == FactorSource::se3) {

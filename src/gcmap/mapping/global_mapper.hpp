@@ -50,6 +50,10 @@ struct GnssMeasurement {
 Eigen::Isometry3d fit_yaw_translation(const std::vector<Eigen::Vector3d>& world, const std::vector<Eigen::Vector3d>& enu,
                                       const std::vector<double>& weights, std::vector<char>* inliers = nullptr);
 
+// Of `kept` (overlaps of targets submaps[t.index]), the n with the largest overlap, `keep`'s always
+// among them when there, in their order in `kept`; all of them when n <= 0.
+std::vector<TargetOverlap> strongest_overlaps(std::vector<TargetOverlap> kept, const std::vector<int>& submaps, int keep, int n);
+
 struct GlobalMappingStats {
   TimingStats factors, optimization;
   struct PerSubmap {
