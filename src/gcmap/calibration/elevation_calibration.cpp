@@ -27,6 +27,9 @@ constexpr double kMaxOffset = 2.0 * kDeg;
 constexpr double kHuber = 3.0;           // on the whitened point-to-plane distance
 constexpr double kMinNormalZ = 0.9;      // level ground only (within 26 deg)
 constexpr double kMaxWallNormalZ = 0.3;  // steep surfaces for levelling (within 17 deg of vertical)
+// Cauchy scale on a steep normal's z: where a wall meets the ground or a corner, the neighbourhood
+// spans both and the normal leans; those few must not tilt the scan.
+constexpr double kWallCauchy = 0.1;
 constexpr double kWallPrior = 100.0;     // points' worth of "no tilt" in the levelling
 constexpr int kLevelIterations = 3;      // Gauss-Newton steps: a run may stand degrees off the vertical
 
@@ -262,8 +265,9 @@ TiltEquations wall_tilt(const CalibrationScan& s, const Eigen::Matrix3d& R_level
     eig.computeDirect(cov);
     const Eigen::Vector3d n = R * eig.eigenvectors().col(0).cast<double>();
     if (std::abs(n.z()) > kMaxWallNormalZ) continue;
+    const double w = 1.0 / (1.0 + n.z() * n.z() / (kWallCauchy * kWallCauchy));
     const Eigen::Vector2d J(n.y(), -n.x());
-    e.A += J * J.transpose(), e.b -= J * n.z();
+    e.A += w * J * J.transpose(), e.b -= w * J * n.z();
   }
   return e;
 }

@@ -19,9 +19,10 @@ struct LoopConfig {
   double verification_downsample = 0.5;   // m, both submaps before GICP
   double inlier_distance = 0.3;           // m, after GICP
   // Strict, and the plane distance decides: in a regular street grid wrong blocks align many points
-  // too, but farther from their planes than true revisits. Scale max_inlier_rmse with the sensor's noise.
+  // too, but farther from their planes than true revisits. Scale max_inlier_rmse with the sensor's noise
+  // and the covariances' neighbourhood (docs/pipeline.md).
   double min_inlier_fraction = 0.6;
-  double max_inlier_rmse = 0.03;  // m, point-to-plane
+  double max_inlier_rmse = 0.04;  // m, point-to-plane
   // Constant information of the constraint (sigmas), and the shifted Tukey kernel on its whitened
   // residual r: with the defaults the pull peaks at r = 1000 (10 m of translation), fades to zero
   // below r = 5 (5 cm: the matching-cost factors decide) and above r = 1995 (grossly wrong).

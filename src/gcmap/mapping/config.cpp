@@ -70,7 +70,8 @@ void visit_preprocess(Config& c, Visitor& v) {
     KeyDoc{"m", 0.01, 100, "odometry/", "Voxel size of the downsampling of each scan before registration."});
   v("preprocess", "num_neighbors", c.preprocess.num_neighbors,
     KeyDoc{"-", 4, 100, "odometry/",
-           "Nearest neighbours from which each point's covariance (its local surface shape) is estimated."});
+           "Nearest neighbours from which each point's covariance (its local surface shape) is estimated; twenty, so that "
+           "far ground, whose rings lie further apart than the voxel grid, spans more than one ring."});
   v("preprocess", "elevation_sigma_deg", c.preprocess.elevation_sigma_deg,
     KeyDoc{"deg", 0, 5, "odometry/",
            "Beam elevation uncertainty added to each point's covariance (range times this, in the beam's vertical plane), for a "
@@ -290,7 +291,8 @@ void visit_loop(Config& c, Visitor& v) {
   v("loop", "max_inlier_rmse", c.loop.max_inlier_rmse,
     KeyDoc{"m", 0.001, 10, "loop/",
            "Point-to-plane RMSE of the inliers a loop may have at most: true revisits align at about the range noise, wrong "
-           "places clearly above it. Scale it with the sensor's noise."});
+           "places clearly above it. Scale it with the sensor's noise, and with preprocess.num_neighbors (the planes the "
+           "distances are taken to)."});
   v("loop", "rotation_sigma_deg", c.loop.rotation_sigma_deg,
     KeyDoc{"deg", 0.0001, 180, "loop/", "Rotation sigma of the loop constraint's constant information."});
   v("loop", "translation_sigma", c.loop.translation_sigma,

@@ -11,7 +11,10 @@ struct PreprocessConfig {
   double min_range = 2.0;  // m: drops returns from the ego vehicle
   double max_range = 100.0;
   double downsample = 0.25;  // voxel size in m
-  int num_neighbors = 10;    // covariance estimation
+  // Covariance estimation. Twenty, not ten: beyond 10-20 m a spinning sensor's ground rings lie
+  // further apart than the grid, and ten neighbours lie on one ring, whose normal the range noise
+  // decides (docs/pipeline.md, "Point covariances").
+  int num_neighbors = 20;
   // Beam elevation uncertainty added to each point's covariance (range x sigma along the beam's
   // vertical plane): a sensor with a per-beam elevation bias (factory calibration) makes far
   // ground lie off its plane by range x bias. 0 = off.
