@@ -169,7 +169,8 @@ ignored when config.imu.use is off. ValueError for a bad shape or a stamp not in
           "The global factors as dicts: type (matching_cost, odometry, se3, loop), source, target, overlap, final_error.")
       .def_property_readonly(
           "loops", [](P& p) { return py::object(from_json(p.locked([](MP& mp) { return graph_json(mp); }))["loop_candidates"]); },
-          "Every verified loop candidate as a dict: source, target, descriptor_distance, inlier_fraction, inlier_rmse, accepted.")
+          "Every verified loop candidate as a dict: source, target, descriptor_distance, inlier_fraction, inlier_rmse, "
+          "conditioning, accepted.")
       .def_property_readonly(
           "stats", [](P& p) { return from_json(p.locked([](MP& mp) { return stats_json(mp); })); },
           "stats.json of `gcmap map` as a dict: frames, rate, device, per-module timings, optimization per submap.")

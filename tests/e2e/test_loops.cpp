@@ -75,13 +75,39 @@ TEST_F(LoopScenario, VerificationAcceptsTheRevisitAndRejectsAnotherPlace) {
   const ScanContextMatch m = match_scan_contexts(make_scan_context(revisit), make_scan_context(start));
   const LoopConfig config;
   const LoopVerification good = verify_loop(revisit, start, yaw_rotation(m.yaw), config);
-  EXPECT_TRUE(good.accepted) << good.inlier_fraction << " " << good.inlier_rmse;
+  EXPECT_TRUE(good.accepted) << good.inlier_fraction << " " << good.inlier_rmse << " " << good.conditioning;
+  EXPECT_GT(good.conditioning, 2.0 * config.min_conditioning);
   EXPECT_LT(test::translation_error(good.T_target_source, relative(3, 146)), 0.05);
   EXPECT_LT(test::rotation_error_deg(good.T_target_source, relative(3, 146)), 0.2);
   // The far side of the block, started from the best yaw ScanContext can offer.
   const ScanContextMatch wrong = match_scan_contexts(make_scan_context(elsewhere), make_scan_context(start));
   const LoopVerification bad = verify_loop(elsewhere, start, yaw_rotation(wrong.yaw), config);
   EXPECT_FALSE(bad.accepted) << bad.inlier_fraction << " " << bad.inlier_rmse;
+}
+
+// Inside the tunnel's canyon a place 90 m further on aligns as closely as a revisit would: only
+// the translation's conditioning tells it from one.
+TEST(LoopVerification, APlaceFurtherAlongATunnelIsRefusedForItsConditioning) {
+  sim::SimulationConfig cfg;
+  cfg.scenario = "tunnel";
+  const sim::Simulator tunnel(cfg);
+  const auto& poses = tunnel.poses();
+  int a = 0;
+  while (a < static_cast<int>(poses.size()) && poses[a].translation().x() < 80.0) ++a;
+  int b = a;
+  while (b < static_cast<int>(poses.size()) && (poses[b].translation() - poses[a].translation()).norm() < 90.0) ++b;
+  ASSERT_LT(b, static_cast<int>(poses.size()));
+  const PointCloud target = preprocess_scan(tunnel.scan(a), PreprocessConfig{});
+  const PointCloud source = preprocess_scan(tunnel.scan(b), PreprocessConfig{});
+  const LoopConfig config;
+  // Started where a place recognizer would put it: on top of the other.
+  const LoopVerification v = verify_loop(source, target, Eigen::Isometry3d::Identity(), config);
+  std::printf("frames %d and %d: inliers %.3f, RMSE %.4f m, conditioning %.4f\n", a, b, v.inlier_fraction, v.inlier_rmse,
+              v.conditioning);
+  EXPECT_GE(v.inlier_fraction, config.min_inlier_fraction);
+  EXPECT_LE(v.inlier_rmse, config.max_inlier_rmse);
+  EXPECT_LT(v.conditioning, 0.5 * config.min_conditioning);
+  EXPECT_FALSE(v.accepted);
 }
 
 TEST_F(LoopScenario, ShiftedTukeyLoopNeutralizesAPlantedFalseLoopAndLetsGoOfATrueOne) {

@@ -21,7 +21,9 @@ LoopVerification verify_loop(const PointCloud& source_full, const PointCloud& ta
   RegistrationConfig reg;
   for (const double distance : {4.0, 2.0, 1.0, 2.0 * config.inlier_distance}) {
     reg.max_correspondence_distance = distance;
-    out.T_target_source = align_gicp(source, gicp_target, out.T_target_source, reg).T_target_source;
+    const RegistrationResult r = align_gicp(source, gicp_target, out.T_target_source, reg);
+    out.T_target_source = r.T_target_source;
+    out.conditioning = translation_conditioning(r.H);
   }
   const std::vector<int> corr = find_correspondences(source, gicp_target, out.T_target_source, config.inlier_distance);
   // Point-to-plane distances (target normal = least-variance axis of its plane-like covariance):
@@ -38,7 +40,8 @@ LoopVerification verify_loop(const PointCloud& source_full, const PointCloud& ta
   }
   out.inlier_fraction = static_cast<double>(inliers) / source.size();
   out.inlier_rmse = inliers ? std::sqrt(sum_sq / inliers) : 0.0;
-  out.accepted = out.inlier_fraction >= config.min_inlier_fraction && out.inlier_rmse <= config.max_inlier_rmse;
+  out.accepted = out.inlier_fraction >= config.min_inlier_fraction && out.inlier_rmse <= config.max_inlier_rmse &&
+                 out.conditioning >= config.min_conditioning;
   return out;
 }
 

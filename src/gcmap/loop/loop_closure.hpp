@@ -23,6 +23,9 @@ struct LoopConfig {
   // and the covariances' neighbourhood (docs/pipeline.md).
   double min_inlier_fraction = 0.6;
   double max_inlier_rmse = 0.04;  // m, point-to-plane
+  // A featureless tunnel aligns just as well 100 m further on: the alignment must hold the
+  // translation in every direction (translation_conditioning of the verification's alignment).
+  double min_conditioning = 0.03;
   // Constant information of the constraint (sigmas), and the shifted Tukey kernel on its whitened
   // residual r: with the defaults the pull peaks at r = 1000 (10 m of translation), fades to zero
   // below r = 5 (5 cm: the matching-cost factors decide) and above r = 1995 (grossly wrong).
@@ -37,10 +40,12 @@ struct LoopVerification {
   Eigen::Isometry3d T_target_source = Eigen::Isometry3d::Identity();
   double inlier_fraction = 0.0;  // source points with a target point within inlier_distance
   double inlier_rmse = 0.0;      // m, point-to-plane, over those points
+  double conditioning = 0.0;     // translation_conditioning of the final alignment
 };
 
 // GICP (kNN) from `init`, coarse to fine, on both clouds downsampled; accepted only on a high
-// inlier fraction and a low inlier RMSE. Both clouds need covariances.
+// inlier fraction, a low inlier RMSE and a translation held in every direction. Both clouds need
+// covariances.
 LoopVerification verify_loop(const PointCloud& source, const PointCloud& target, const Eigen::Isometry3d& init,
                              const LoopConfig& config);
 

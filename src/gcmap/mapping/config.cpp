@@ -293,6 +293,10 @@ void visit_loop(Config& c, Visitor& v) {
            "Point-to-plane RMSE of the inliers a loop may have at most: true revisits align at about the range noise, wrong "
            "places clearly above it. Scale it with the sensor's noise, and with preprocess.num_neighbors (the planes the "
            "distances are taken to)."});
+  v("loop", "min_conditioning", c.loop.min_conditioning,
+    KeyDoc{"-", 0, 1, "loop/",
+           "Smallest over largest eigenvalue of the verification's translation information (rotation marginalized) a loop "
+           "needs: a featureless tunnel aligns as well 100 m further on, and only along its axis is it free."});
   v("loop", "rotation_sigma_deg", c.loop.rotation_sigma_deg,
     KeyDoc{"deg", 0.0001, 180, "loop/", "Rotation sigma of the loop constraint's constant information."});
   v("loop", "translation_sigma", c.loop.translation_sigma,

@@ -43,7 +43,7 @@ std::optional<LoopRecord> LoopDetector::detect(int id, const std::vector<Submap>
   const Eigen::Isometry3d init = place_match_guess(submaps[id], ka, submaps[j], kb, best.match.yaw);
   const LoopVerification v = verify_loop(*submaps[id].cloud, *submaps[j].cloud, init, config_);
   stats_.verification.add(w.lap_ms());
-  loops_.push_back({id, j, best.match.distance, v.inlier_fraction, v.inlier_rmse, v.accepted, v.T_target_source});
+  loops_.push_back({id, j, best.match.distance, v.inlier_fraction, v.inlier_rmse, v.conditioning, v.accepted, v.T_target_source});
   if (!v.accepted) return std::nullopt;
   return loops_.back();
 }

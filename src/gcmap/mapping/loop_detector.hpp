@@ -13,7 +13,7 @@ namespace gcmap {
 // An explicit loop candidate that passed or failed verification.
 struct LoopRecord {
   int source = 0, target = 0;  // submaps
-  double descriptor_distance = 0.0, inlier_fraction = 0.0, inlier_rmse = 0.0;
+  double descriptor_distance = 0.0, inlier_fraction = 0.0, inlier_rmse = 0.0, conditioning = 0.0;
   bool accepted = false;
   Eigen::Isometry3d T_target_source = Eigen::Isometry3d::Identity();  // verified relative pose
 };

@@ -38,6 +38,7 @@ Json loop_json(const LoopRecord& l) {
   j["descriptor_distance"] = l.descriptor_distance;
   j["inlier_fraction"] = l.inlier_fraction;
   j["inlier_rmse"] = l.inlier_rmse;
+  j["conditioning"] = l.conditioning;
   j["accepted"] = l.accepted;
   return j;
 }

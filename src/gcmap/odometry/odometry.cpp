@@ -36,10 +36,7 @@ RegistrationQuality registration_quality(const RegistrationResult& r, size_t poi
   q.inlier_fraction = points ? static_cast<double>(r.num_inliers) / points : 0.0;
   q.hessian = r.H;
   if (r.num_inliers == 0) return q;
-  // Rotation first, translation last (se3_exp); the translation information once rotation is free.
-  const Eigen::Matrix3d Hrr = r.H.topLeftCorner<3, 3>(), Hrt = r.H.topRightCorner<3, 3>();
-  const Eigen::Matrix3d Htt = r.H.bottomRightCorner<3, 3>() - Hrt.transpose() * Hrr.ldlt().solve(Hrt);
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(0.5 * (Htt + Htt.transpose()) / r.num_inliers);
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(translation_information(r.H) / r.num_inliers);
   q.translation_information = eig.eigenvalues().cwiseMax(0.0);
   q.weak_direction = eig.eigenvectors().col(0);
   return q;

@@ -1,5 +1,7 @@
 #include "gcmap/registration/registration.hpp"
 
+#include <Eigen/Eigenvalues>
+
 #include "gcmap/core/error.hpp"
 #include "gcmap/registration/align.hpp"
 #include "gcmap/registration/vgicp.hpp"
@@ -41,6 +43,18 @@ RegistrationResult align_gicp(const PointCloud& source, const GicpTarget& target
   if (!(config.max_correspondence_distance > 0.0)) throw Error("align_gicp: max_correspondence_distance must be positive");
   GicpProblem problem{source, target, config.max_correspondence_distance, {}};
   return align(problem, init, config);
+}
+
+Eigen::Matrix3d translation_information(const Matrix6d& H) {
+  const Eigen::Matrix3d Hrr = H.topLeftCorner<3, 3>(), Hrt = H.topRightCorner<3, 3>();
+  const Eigen::Matrix3d Htt = H.bottomRightCorner<3, 3>() - Hrt.transpose() * Hrr.ldlt().solve(Hrt);
+  return 0.5 * (Htt + Htt.transpose());
+}
+
+double translation_conditioning(const Matrix6d& H) {
+  const Eigen::Vector3d e =
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(translation_information(H)).eigenvalues().cwiseMax(0.0);
+  return e[2] > 0.0 ? e[0] / e[2] : 0.0;
 }
 
 }  // namespace gcmap

@@ -33,4 +33,12 @@ RegistrationResult align_vgicp(const PointCloud& source, const GaussianVoxelMap&
 RegistrationResult align_gicp(const PointCloud& source, const GicpTarget& target, const Eigen::Isometry3d& init_T_target_source,
                               const RegistrationConfig& config = {});
 
+// The translation block of a registration's Hessian (rotation first) with the rotation marginalized
+// (Schur complement): how well the translation is held once the rotation is free.
+Eigen::Matrix3d translation_information(const Matrix6d& H);
+
+// Smallest over largest eigenvalue of translation_information(H): 1 held alike in every direction,
+// near 0 degenerate (parallel structure: a tunnel, a straight road's rails).
+double translation_conditioning(const Matrix6d& H);
+
 }  // namespace gcmap
