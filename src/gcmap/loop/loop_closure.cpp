@@ -19,12 +19,14 @@ LoopVerification verify_loop(const PointCloud& source_full, const PointCloud& ta
   // ScanContext gives the yaw only; the places can be metres apart, so start with wide
   // correspondences and tighten.
   RegistrationConfig reg;
+  Matrix6d H = Matrix6d::Zero();
   for (const double distance : {4.0, 2.0, 1.0, 2.0 * config.inlier_distance}) {
     reg.max_correspondence_distance = distance;
     const RegistrationResult r = align_gicp(source, gicp_target, out.T_target_source, reg);
     out.T_target_source = r.T_target_source;
-    out.conditioning = translation_conditioning(r.H);
+    H = r.H;
   }
+  out.conditioning = translation_conditioning(H);
   const std::vector<int> corr = find_correspondences(source, gicp_target, out.T_target_source, config.inlier_distance);
   // Point-to-plane distances (target normal = least-variance axis of its plane-like covariance):
   // point spacing after downsampling would dominate a point-to-point RMSE.
