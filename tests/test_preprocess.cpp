@@ -1,12 +1,14 @@
 #include <Eigen/Eigenvalues>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <map>
 
 #include "gcmap/core/error.hpp"
 #include "gcmap/core/gaussian_voxel_map.hpp"
+#include "gcmap/core/kdtree.hpp"
 #include "gcmap/core/preprocess.hpp"
 #include "gcmap/sim/synthetic.hpp"
 #include "test_util.hpp"
@@ -69,6 +71,58 @@ TEST(Downsample, ExactFarFromOrigin) {
   EXPECT_NEAR(d.points[0].x(), -100000.0 + 0.015, 0.01);
 }
 
+namespace {
+
+// The k nearest by brute force: squared distances, ascending.
+std::vector<float> brute_knn(const std::vector<Eigen::Vector3f>& pts, const Eigen::Vector3f& q, size_t k) {
+  std::vector<float> d;
+  for (const Eigen::Vector3f& p : pts) d.push_back((p - q).squaredNorm());
+  std::sort(d.begin(), d.end());
+  d.resize(std::min(k, d.size()));
+  return d;
+}
+
+}  // namespace
+
+// Exact search on the shapes a scan has: a dense plane, far sparse rings, duplicates, a flat (2D) cloud,
+// and points spaced geometrically.
+TEST(KdTree, FindsExactlyTheNearestOnScanLikeAndAdversarialClouds) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<std::vector<Eigen::Vector3f>> clouds(4);
+  for (int i = 0; i < 3000; ++i) clouds[0].emplace_back(20 * u(rng), 20 * u(rng), 0.02f * u(rng));
+  for (int r = 0; r < 8; ++r) {
+    for (int a = 0; a < 400; ++a) {
+      const float t = a * 2 * M_PI / 400, range = 10.0f + 7.0f * r;
+      clouds[0].emplace_back(range * std::cos(t), range * std::sin(t), -1.7f);
+    }
+  }
+  for (int i = 0; i < 500; ++i) clouds[1].push_back(Eigen::Vector3f(1, 2, 3) + 0.5f * Eigen::Vector3f(i % 3, 0, 0));
+  for (int i = 0; i < 2000; ++i) clouds[2].emplace_back(50 * u(rng), 50 * u(rng), 0.0f);
+  for (int i = 0; i < 200; ++i) clouds[3].emplace_back(std::ldexp(1.0f, -i / 2), 0.0f, (i % 2) * 1e-3f);
+  for (const auto& pts : clouds) {
+    const KdTree tree(pts);
+    for (size_t k : {1u, 5u, 20u, 600u}) {
+      std::vector<uint32_t> idx(k);
+      std::vector<float> sq(k);
+      for (int t = 0; t < 50; ++t) {
+        const Eigen::Vector3f q = t % 2 ? pts[rng() % pts.size()] : Eigen::Vector3f(30 * u(rng), 30 * u(rng), u(rng));
+        const size_t found = tree.knn(q, k, idx.data(), sq.data());
+        const std::vector<float> expected = brute_knn(pts, q, k);
+        ASSERT_EQ(found, expected.size());
+        for (size_t j = 0; j < found; ++j) {
+          EXPECT_FLOAT_EQ(sq[j], expected[j]);
+          EXPECT_FLOAT_EQ(sq[j], (pts[idx[j]] - q).squaredNorm());
+        }
+      }
+    }
+  }
+  const KdTree empty(std::vector<Eigen::Vector3f>{});
+  uint32_t i;
+  float d;
+  EXPECT_EQ(empty.knn(Eigen::Vector3f::Zero(), 3, &i, &d), 0u);
+}
+
 TEST(Covariance, PlaneLikeOnAPlaneAndSafeOnTinyClouds) {
   PointCloud plane;
   std::mt19937_64 rng(4);
@@ -92,6 +146,29 @@ TEST(Covariance, PlaneLikeOnAPlaneAndSafeOnTinyClouds) {
 // A beam whose elevation is off by d moves its point by range * d along the vertical plane of
 // the beam: on far ground that is nearly the surface normal, where plane-like covariances are
 // thinnest, so the uncertainty is added there (preprocess.elevation_sigma_deg).
+// Each point's covariance is that of its k nearest as brute force finds them.
+TEST(Covariance, FromTheExactNearestNeighbours) {
+  PointCloud cloud = voxel_downsample(make_structured_scene(20000, 9), 0.25);
+  CovarianceConfig config;
+  config.num_neighbors = 20;
+  estimate_covariances(cloud, config);
+  for (size_t i = 0; i < cloud.size(); i += 37) {
+    std::vector<std::pair<float, size_t>> d;
+    for (size_t j = 0; j < cloud.size(); ++j) d.push_back({(cloud.points[j] - cloud.points[i]).squaredNorm(), j});
+    std::partial_sort(d.begin(), d.begin() + 20, d.end());
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (int j = 0; j < 20; ++j) mean += cloud.points[d[j].second].cast<double>() / 20.0;
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (int j = 0; j < 20; ++j) {
+      const Eigen::Vector3d e = cloud.points[d[j].second].cast<double>() - mean;
+      cov += e * e.transpose() / 20.0;
+    }
+    const Eigen::Matrix3d U = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors();
+    const Eigen::Matrix3d expected = U * Eigen::Vector3d(config.epsilon, 1.0, 1.0).asDiagonal() * U.transpose();
+    EXPECT_LT((cloud.covs[i].cast<double>() - expected).norm(), 1e-5) << i;
+  }
+}
+
 TEST(Covariance, ElevationUncertaintyGrowsWithRangeAlongTheBeamsVerticalPlane) {
   PointCloud ground;
   std::mt19937_64 rng(5);

@@ -17,6 +17,7 @@ class KdTree {
 
   // Writes up to k neighbours (sorted by distance) and returns how many were found.
   size_t knn(const Eigen::Vector3f& query, size_t k, uint32_t* indices, float* sq_dists) const {
+    if (adaptor_.points.empty() || k == 0) return 0;  // nanoflann answers an empty tree with garbage
     nanoflann::KNNResultSet<float, uint32_t> result(k);
     result.init(indices, sq_dists);
     index_.findNeighbors(result, query.data(), nanoflann::SearchParams(32, 0.0f, true));
