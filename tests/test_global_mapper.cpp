@@ -86,5 +86,46 @@ TEST(GlobalMapper, ANewSubmapGetsAtMostMaxNewFactorsAndStillUndoesTheDrift) {
     }
 }
 
+// A straight tunnel (make_tunnel_scan) seen to 25 m from each submap, submaps 8 m apart; the
+// odometry makes each step 8.4 m, as one sliding along a tunnel does.
+struct Tunnel {
+  std::vector<Submap> submaps;
+
+  explicit Tunnel(int n) {
+    for (int k = 0; k < n; ++k) {
+      const ScanNode node = make_scan_node(voxel_downsample(make_tunnel_scan(40000, 40 + k, 25.0), 0.25), 0.5);
+      Submap s;
+      s.id = k;
+      s.keyframes = {k};
+      s.T_submap_keyframe = {Eigen::Isometry3d::Identity()};
+      s.T_odom = Eigen::Translation3d(8.4 * k, 0.0, 0.0);
+      s.cloud = s.factor_source = node.cloud;
+      s.voxels = node.voxels;
+      submaps.push_back(std::move(s));
+    }
+  }
+
+  GlobalMapper map(double min_conditioning) const {
+    GlobalMappingConfig config;
+    config.min_conditioning = min_conditioning;
+    GlobalMapper mapper(config, LoopConfig{}, std::make_shared<CpuBackend>());
+    for (const Submap& s : submaps) mapper.insert(s, nullptr);
+    mapper.optimize_final();
+    return mapper;
+  }
+};
+
+// Where the matching costs cannot see along a tunnel, what they tell along it is noise: they
+// stretched the odometry's 42 m further. Blind along it, the graph stays near what the odometry says.
+TEST(GlobalMapper, ATunnelKeepsTheOdometrysLengthWhereTheMatchingCostsCannotSeeAlongIt) {
+  const Tunnel tunnel(6);
+  const auto length = [&](const GlobalMapper& m) {
+    return (m.pose(0).inverse() * m.pose(static_cast<int>(tunnel.submaps.size()) - 1)).translation().x();
+  };
+  const GlobalMapper blind = tunnel.map(0.03), seeing = tunnel.map(0.0);
+  EXPECT_NEAR(length(blind), 42.0, 0.12);  // measured 42.08
+  EXPECT_GT(length(seeing), 42.2) << "without it (the case this guards against); measured 42.30";
+}
+
 }  // namespace
 }  // namespace gcmap

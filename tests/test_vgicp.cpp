@@ -1,3 +1,4 @@
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <fstream>
 #include <sstream>
@@ -151,6 +152,43 @@ TEST(Vgicp, BinaryBlocksAgreeWithUnaryAndGauge) {
   const RegistrationResult r = align_vgicp(s.source, s.voxels, T_ji, one_step);
   const VgicpLinearization at_r = linearize_vgicp(s.source, s.voxels, r.T_target_source);
   EXPECT_LT((r.H - at_r.H_ii).norm(), 1e-9 * r.H.norm());
+}
+
+// Two views of a tunnel 8 m apart, linearized 0.3 m short along it: the cost cannot tell along it and
+// loses that direction, keeping what holds the rest; a scene held every way keeps everything.
+TEST(Vgicp, AWeakTranslationIsDroppedAndTheOthersKept) {
+  PointCloud target = voxel_downsample(make_tunnel_scan(40000, 1, 25.0), 0.25);
+  PointCloud source = voxel_downsample(make_tunnel_scan(40000, 2, 25.0), 0.25);
+  const Eigen::Isometry3d T_target_source(Eigen::Translation3d(8.0, 0.0, 0.0));
+  estimate_covariances(target);
+  estimate_covariances(source);
+  GaussianVoxelMap voxels(0.5);
+  voxels.insert(target);
+  voxels.finalize();
+  const Eigen::Isometry3d at = Eigen::Translation3d(-0.3, 0.05, 0.0) * T_target_source;
+  const VgicpLinearization lin = linearize_vgicp(source, voxels, at);
+  TargetFrameSums sums{lin.H_jj, lin.b_j, lin.error, lin.num_inliers};
+  EXPECT_LT(translation_conditioning(sums.H), 0.03);
+  ASSERT_TRUE(drop_weak_translation(sums, 0.03));
+  const Eigen::Vector3d v =
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(translation_information(lin.H_jj)).eigenvectors().col(0);
+  EXPECT_GT(std::abs(v.x()), 0.999) << "the weak direction is along the tunnel";
+  const Vector6d along = (Vector6d() << 0, 0, 0, v).finished();  // [rotation; translation]
+  EXPECT_LT((sums.H * along).norm(), 1e-9 * sums.H.norm());
+  EXPECT_GT(std::abs(lin.b_j.dot(along)), 1e-6 * lin.b_j.norm()) << "a pull along it before";
+  EXPECT_LT(std::abs(sums.b.dot(along)), 1e-9 * sums.b.norm()) << "and none after";
+  const Eigen::Matrix3d before = translation_information(lin.H_jj), after = translation_information(sums.H);
+  EXPECT_NEAR(after(1, 1), before(1, 1), 1e-3 * before(1, 1)) << "across the tunnel: held as before";
+  EXPECT_NEAR(after(2, 2), before(2, 2), 1e-3 * before(2, 2));
+  EXPECT_NEAR(sums.b[4], lin.b_j[4], 1e-3 * lin.b_j.norm()) << "and still pulled back across it";
+
+  std::mt19937_64 rng(2);
+  const Scene held = make_scene(test::random_pose(rng, 0.05, 0.3));
+  const VgicpLinearization h = linearize_vgicp(held.source, held.voxels, Eigen::Isometry3d::Identity());
+  TargetFrameSums unchanged{h.H_jj, h.b_j, h.error, h.num_inliers};
+  EXPECT_FALSE(drop_weak_translation(unchanged, 0.03));
+  EXPECT_EQ(unchanged.H, h.H_jj);
+  EXPECT_EQ(unchanged.b, h.b_j);
 }
 
 TEST(Vgicp, SingularFusedCovariancesDropOutOfEverySum) {

@@ -246,7 +246,9 @@ void CudaBackend::linearize(std::span<Factor* const> factors, std::span<const Fa
                     [&](size_t k) { factors[on_host[k]]->linearize(poses[on_host[k]].data(), out[on_host[k]]); });
   impl_->batch.linearize(impl_->poses.data(), impl_->sums.data());
   tbb::parallel_for(size_t{0}, on_device.size(), [&](size_t k) {
-    to_factor_linearization(expand_to_both_poses(unpack(impl_->sums.data() + device::kSums * k), T[k]), out[on_device[k]]);
+    const auto* m = static_cast<const MatchingCostFactor*>(factors[on_device[k]]);
+    to_factor_linearization(m->conditioned(expand_to_both_poses(unpack(impl_->sums.data() + device::kSums * k), T[k]), T[k]),
+                            out[on_device[k]]);
   });
 }
 

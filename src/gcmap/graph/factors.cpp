@@ -37,7 +37,16 @@ void MatchingCostFactor::linearize(const Eigen::Isometry3d* const* poses, Factor
   }
   const bool keep = trial_voxels_ == TrialVoxels::kept || counted_ > 0;
   to_factor_linearization(
-      keep ? linearize_vgicp(*source_, *target_, T_lin_, associations_) : linearize_vgicp(*source_, *target_, T_lin_), out);
+      conditioned(keep ? linearize_vgicp(*source_, *target_, T_lin_, associations_) : linearize_vgicp(*source_, *target_, T_lin_),
+                  T_lin_),
+      out);
+}
+
+VgicpLinearization MatchingCostFactor::conditioned(const VgicpLinearization& lin,
+                                                   const Eigen::Isometry3d& T_target_source) const {
+  if (!(min_conditioning_ > 0.0)) return lin;
+  TargetFrameSums sums{lin.H_jj, lin.b_j, lin.error, lin.num_inliers};
+  return drop_weak_translation(sums, min_conditioning_) ? expand_to_both_poses(sums, T_target_source) : lin;
 }
 
 void to_factor_linearization(const VgicpLinearization& lin, FactorLinearization& out) {

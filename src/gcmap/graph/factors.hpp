@@ -85,6 +85,12 @@ class MatchingCostFactor : public Factor {
   bool reusable() const override { return true; }
   void release_trial_state() override;
 
+  // Linearizations drop a translation held by less than this (drop_weak_translation,
+  // registration/vgicp.hpp); 0: never. The global graph's factors do (global.min_conditioning).
+  void set_min_conditioning(double min_conditioning) { min_conditioning_ = min_conditioning; }
+  // lin (at T_target_source) after that; for backends that linearize on their own.
+  VgicpLinearization conditioned(const VgicpLinearization& lin, const Eigen::Isometry3d& T_target_source) const;
+
   const PointCloud& source() const { return *source_; }
   const GaussianVoxelMap& target() const { return *target_; }
   const std::shared_ptr<const PointCloud>& source_ptr() const { return source_; }
@@ -97,6 +103,7 @@ class MatchingCostFactor : public Factor {
   TrialVoxels trial_voxels_;
   std::vector<int> associations_;  // kept: each source point's voxel at T_lin_
   long counted_ = 0;               // kept_per_optimization: points of associations_ under the cap
+  double min_conditioning_ = 0.0;
 };
 
 // SE(3) constraint T_i^-1 T_j ~ measured, error = log(measured^-1 T_i^-1 T_j) whitened by a 6x6

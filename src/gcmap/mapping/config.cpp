@@ -250,6 +250,12 @@ void visit_global(Config& c, Visitor& v) {
     KeyDoc{"-", 0, 100000, "mapping/",
            "Matching-cost factors a new submap gets at most: to its predecessor and the past submaps it overlaps most; 0: "
            "to every one above th_min."});
+  v("global", "min_conditioning", c.global.min_conditioning,
+    KeyDoc{"-", 0, 1, "mapping/",
+           "A matching-cost factor whose translation is held in one direction by less than this fraction of the best (smallest "
+           "over largest eigenvalue of its Hessian's translation block, rotation marginalized: a tunnel, a corridor) is blind "
+           "along it: what such a cost tells along a tunnel is noise, and a graph of them moved tunnels' submaps by metres; "
+           "there the submaps stay where the odometry put them. 0: off."});
   v("global", "factor_source_points", c.global.factor_source_points,
     KeyDoc{"-", 1000, 10000000, "mapping/",
            "Points of a submap used as the source of its matching-cost factors and overlaps (an even subsample; the target voxel "

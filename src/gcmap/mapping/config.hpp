@@ -76,6 +76,9 @@ struct GlobalMappingConfig {
   // overlaps most (0: to every one above th_min). A revisit overlaps many consecutive past submaps
   // that tell much the same; each factor costs every later optimization.
   int max_new_factors = 12;
+  // A matching-cost factor held along one translation by less than this fraction of the best is
+  // blind along it (0: off).
+  double min_conditioning = 0.03;
 };
 
 // Localization on a prior map (gcmap localize).

@@ -347,9 +347,10 @@ int GlobalMapper::connect_overlapping(int id, int first) {
       add_factor({FactorKind::se3, id, j, t.overlap,
                   std::make_shared<RelativePoseFactor>(j, id, r.T_target_source, r.H, RobustKernel::huber(10.0))});
     } else {
-      add_factor({FactorKind::matching_cost, id, j, t.overlap,
-                  std::make_shared<MatchingCostFactor>(id, j, cur.factor_source, submaps_[j].voxels,
-                                                       TrialVoxels::kept_per_optimization)});
+      auto f =
+          std::make_shared<MatchingCostFactor>(id, j, cur.factor_source, submaps_[j].voxels, TrialVoxels::kept_per_optimization);
+      f->set_min_conditioning(config_.min_conditioning);
+      add_factor({FactorKind::matching_cost, id, j, t.overlap, std::move(f)});
     }
   }
   return static_cast<int>(kept.size());

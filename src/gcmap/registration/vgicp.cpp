@@ -1,7 +1,10 @@
 #include "gcmap/registration/vgicp.hpp"
 
+#include <Eigen/Eigenvalues>
+
 #include "gcmap/core/error.hpp"
 #include "gcmap/registration/gaussian_terms.hpp"
+#include "gcmap/registration/registration.hpp"
 
 namespace gcmap {
 
@@ -16,6 +19,19 @@ VgicpLinearization expand_to_both_poses(const TargetFrameSums& sums, const Eigen
   out.error = sums.error;
   out.num_inliers = sums.num_inliers;
   return out;
+}
+
+bool drop_weak_translation(TargetFrameSums& sums, double min_conditioning) {
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(translation_information(sums.H));
+  const Eigen::Vector3d e = eig.eigenvalues().cwiseMax(0.0);
+  if (!(e[2] > 0.0) || e[0] >= min_conditioning * e[2]) return false;
+  // d -> P d with P removing the translation along the weakest direction: the cost no longer
+  // changes along it, whatever the rotation.
+  Matrix6d P = Matrix6d::Identity();
+  P.bottomRightCorner<3, 3>() -= eig.eigenvectors().col(0) * eig.eigenvectors().col(0).transpose();
+  sums.H = P * sums.H * P;
+  sums.b = P * sums.b;
+  return true;
 }
 
 VgicpLinearization linearize_vgicp(const PointCloud& source, const GaussianVoxelMap& target,

@@ -58,4 +58,11 @@ struct TargetFrameSums {
 };
 VgicpLinearization expand_to_both_poses(const TargetFrameSums& sums, const Eigen::Isometry3d& T_target_source);
 
+// Makes the sums blind to translation along their weakest direction when it is held by less than
+// min_conditioning of the best one (translation_conditioning, registration.hpp). Where two clouds of
+// a tunnel or a corridor slide along each other, what the cost tells along it is noise (where the
+// clouds end, range and beam errors), and a graph of such costs moved its submaps by metres
+// (docs/pipeline.md, "Blind along a tunnel"). Returns whether it did.
+bool drop_weak_translation(TargetFrameSums& sums, double min_conditioning);
+
 }  // namespace gcmap

@@ -135,14 +135,21 @@ std::vector<Eigen::Isometry3d> place_sessions(const std::vector<MergeInput>& in,
   return T_ref_session;
 }
 
+std::shared_ptr<MatchingCostFactor> matching_cost(int source, int target, const Submap& s, const Submap& t,
+                                                  const GlobalMappingConfig& config) {
+  auto f = std::make_shared<MatchingCostFactor>(source, target, s.factor_source, t.voxels, TrialVoxels::kept_per_optimization);
+  f->set_min_conditioning(config.min_conditioning);
+  return f;
+}
+
 // Each session's own factors: its matching costs re-created, other kinds as relative poses at its
 // optimized estimate.
-void add_session_factors(const MergeInput& s, int offset, FactorGraph& graph, std::vector<FactorRecord>& records) {
+void add_session_factors(const MergeInput& s, int offset, const GlobalMappingConfig& config, FactorGraph& graph,
+                         std::vector<FactorRecord>& records) {
   for (const FactorRecord& f : s.factors) {
     const int source = offset + f.source, target = offset + f.target;
     if (f.kind == FactorKind::matching_cost) {
-      graph.add(std::make_shared<MatchingCostFactor>(source, target, s.submaps[f.source].factor_source,
-                                                     s.submaps[f.target].voxels, TrialVoxels::kept_per_optimization));
+      graph.add(matching_cost(source, target, s.submaps[f.source], s.submaps[f.target], config));
     } else {
       const Eigen::Isometry3d T_target_source = s.T_world_submap[f.target].inverse() * s.T_world_submap[f.source];
       graph.add(std::make_shared<RelativePoseFactor>(target, source, T_target_source, odometry_factor_information()));
@@ -180,8 +187,7 @@ size_t add_cross_factors(const std::vector<const Submap*>& submaps, const std::v
     for (const TargetOverlap& t :
          overlapping_targets(backend, submaps[u]->factor_source, targets, T_target_source, config.global.th_min)) {
       const int v = near[t.index];
-      graph.add(std::make_shared<MatchingCostFactor>(static_cast<int>(u), v, submaps[u]->factor_source, submaps[v]->voxels,
-                                                     TrialVoxels::kept_per_optimization));
+      graph.add(matching_cost(static_cast<int>(u), v, *submaps[u], *submaps[v], config.global));
       records.push_back({FactorKind::matching_cost, static_cast<int>(u), v, t.overlap});
       ++added;
     }
@@ -240,7 +246,7 @@ MergeResult merge_sessions(const std::vector<MergeInput>& in, const MappingConfi
       submaps.push_back(&in[s].submaps[i]);
       session_of.push_back(static_cast<int>(s));
     }
-    add_session_factors(in[s], r.first_submap[s], graph, r.factors);
+    add_session_factors(in[s], r.first_submap[s], config.global, graph, r.factors);
     const SessionPlacement& p = r.placements[s];
     if (p.anchor < 0) continue;
     // The verified place, as explicit loops are kept: it lets go once the matching costs agree.

@@ -59,4 +59,23 @@ PointCloud make_structured_scene(size_t n, uint64_t seed, double extent) {
   return cloud;
 }
 
+PointCloud make_tunnel_scan(size_t n, uint64_t seed, double max_range) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  PointCloud cloud;
+  cloud.points.reserve(n);
+  while (cloud.points.size() < n) {
+    const double az = 2.0 * M_PI * u(rng), el = (u(rng) - 0.5) * M_PI / 3.0;
+    const Eigen::Vector3d d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+    // The nearest of the walls (y = +-5) and the floor or roof.
+    double t = std::abs(d.y()) > 1e-9 ? 5.0 / std::abs(d.y()) : 1e9;
+    if (d.z() < -1e-9) t = std::min(t, -2.0 / d.z());
+    if (d.z() > 1e-9) t = std::min(t, 4.0 / d.z());
+    if (t > max_range) continue;
+    cloud.points.push_back(((t + noise(rng)) * d).cast<float>());
+  }
+  return cloud;
+}
+
 }  // namespace gcmap
