@@ -11,6 +11,26 @@
 namespace gcmap {
 namespace {
 
+// Submap k of one keyframe: a scan node (its cloud is also its factors' source) at T_odom.
+Submap one_scan_submap(int k, const ScanNode& node, const Eigen::Isometry3d& T_odom) {
+  Submap s;
+  s.id = k;
+  s.keyframes = {k};
+  s.T_submap_keyframe = {Eigen::Isometry3d::Identity()};
+  s.T_odom = T_odom;
+  s.cloud = s.factor_source = node.cloud;
+  s.voxels = node.voxels;
+  return s;
+}
+
+// Every submap inserted, then the final optimization.
+GlobalMapper map_all(const std::vector<Submap>& submaps, const GlobalMappingConfig& config) {
+  GlobalMapper mapper(config, LoopConfig{}, std::make_shared<CpuBackend>());
+  for (const Submap& s : submaps) mapper.insert(s, nullptr);
+  mapper.optimize_final();
+  return mapper;
+}
+
 // Submaps 2 m apart along one scene, each sampling it anew, so that each overlaps most of those
 // before it, less the further back; their odometry drifts 1 cm and 0.1 deg per submap.
 struct Corridor {
@@ -24,25 +44,14 @@ struct Corridor {
       truth.push_back(Eigen::Isometry3d(Eigen::Translation3d(2.0 * k, 0.0, 0.0)));
       if (k > 0) odom = odom * truth[k - 1].inverse() * truth[k] * drift;
       const PointCloud scene = voxel_downsample(make_structured_scene(20000, 500 + k), 0.25);
-      const ScanNode node = make_scan_node(transformed(scene, truth[k].inverse()), 0.5);
-      Submap s;
-      s.id = k;
-      s.keyframes = {k};
-      s.T_submap_keyframe = {Eigen::Isometry3d::Identity()};
-      s.T_odom = odom;
-      s.cloud = s.factor_source = node.cloud;
-      s.voxels = node.voxels;
-      submaps.push_back(std::move(s));
+      submaps.push_back(one_scan_submap(k, make_scan_node(transformed(scene, truth[k].inverse()), 0.5), odom));
     }
   }
 
   GlobalMapper map(int max_new_factors) const {
     GlobalMappingConfig config;
     config.max_new_factors = max_new_factors;
-    GlobalMapper mapper(config, LoopConfig{}, std::make_shared<CpuBackend>());
-    for (const Submap& s : submaps) mapper.insert(s, nullptr);
-    mapper.optimize_final();
-    return mapper;
+    return map_all(submaps, config);
   }
 };
 
@@ -94,24 +103,14 @@ struct Tunnel {
   explicit Tunnel(int n) {
     for (int k = 0; k < n; ++k) {
       const ScanNode node = make_scan_node(voxel_downsample(make_tunnel_scan(40000, 40 + k, 25.0), 0.25), 0.5);
-      Submap s;
-      s.id = k;
-      s.keyframes = {k};
-      s.T_submap_keyframe = {Eigen::Isometry3d::Identity()};
-      s.T_odom = Eigen::Translation3d(8.4 * k, 0.0, 0.0);
-      s.cloud = s.factor_source = node.cloud;
-      s.voxels = node.voxels;
-      submaps.push_back(std::move(s));
+      submaps.push_back(one_scan_submap(k, node, Eigen::Isometry3d(Eigen::Translation3d(8.4 * k, 0.0, 0.0))));
     }
   }
 
   GlobalMapper map(double min_conditioning) const {
     GlobalMappingConfig config;
     config.min_conditioning = min_conditioning;
-    GlobalMapper mapper(config, LoopConfig{}, std::make_shared<CpuBackend>());
-    for (const Submap& s : submaps) mapper.insert(s, nullptr);
-    mapper.optimize_final();
-    return mapper;
+    return map_all(submaps, config);
   }
 };
 
