@@ -117,7 +117,8 @@ TEST(KdTree, FindsExactlyTheNearestOnScanLikeAndAdversarialClouds) {
       }
     }
   }
-  const KdTree empty(std::vector<Eigen::Vector3f>{});
+  const std::vector<Eigen::Vector3f> none;
+  const KdTree empty(none);
   uint32_t i;
   float d;
   EXPECT_EQ(empty.knn(Eigen::Vector3f::Zero(), 3, &i, &d), 0u);

@@ -14,6 +14,7 @@ class KdTree {
       : adaptor_{points}, index_(3, adaptor_, nanoflann::KDTreeSingleIndexAdaptorParams(16)) {
     index_.buildIndex();
   }
+  KdTree(std::vector<Eigen::Vector3f>&&) = delete;  // it keeps a reference: a temporary would dangle
 
   // Writes up to k neighbours (sorted by distance) and returns how many were found.
   size_t knn(const Eigen::Vector3f& query, size_t k, uint32_t* indices, float* sq_dists) const {
