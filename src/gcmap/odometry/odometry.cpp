@@ -120,7 +120,7 @@ Eigen::Isometry3d Odometry::track(const std::shared_ptr<const PointCloud>& frame
   }
   const Guess kind = guess && frames_ >= 2 ? Guess::steady : guess_kind(stamp);
   const Eigen::Isometry3d T = estimate(*frame, predicted, kind, &last_failed_, &last_quality_);
-  accept(frame, T, stamp, last_failed_, last_quality_);
+  accept(frame, T, stamp, last_failed_, last_quality_, guess.has_value());
   return last_;
 }
 
@@ -219,7 +219,7 @@ Eigen::Isometry3d Odometry::estimate(const PointCloud& frame, const Eigen::Isome
 }
 
 void Odometry::accept(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T, std::optional<double> stamp,
-                      bool failed, const RegistrationQuality& quality) {
+                      bool failed, const RegistrationQuality& quality, bool imu_placed) {
   failed_streak_ = failed ? failed_streak_ + 1 : 0;
   if (quality.registered && !failed) {
     inlier_fractions_.push_back(quality.inlier_fraction);
@@ -241,10 +241,14 @@ void Odometry::accept(const std::shared_ptr<const PointCloud>& frame, const Eige
     inlier_fractions_.clear();
     return;
   }
+  // A frame the constant-velocity prediction placed stays out of the model: where the prediction
+  // erred (a handheld sensor's fast turn), the registrations after it took that error on. The
+  // IMU's state places a frame within millimetres: the model keeps moving with it (a canyon).
+  if (failed && !imu_placed) return;
   // A model of one sweep is a poor target: its voxels hold a few points each, and a
   // non-repetitive pattern samples other surfaces in the next sweep, so a walker's first frames
   // registered against it far off. Until the model is full, every registered frame joins it.
-  const bool filling = !failed && static_cast<int>(keyframes_.size()) < config_.model_keyframes;
+  const bool filling = static_cast<int>(keyframes_.size()) < config_.model_keyframes;
   const Eigen::Isometry3d delta = keyframes_.back().first.inverse() * T;
   if (filling || delta.translation().norm() > config_.keyframe_distance ||
       rotation_angle(delta) > config_.keyframe_angle_deg * M_PI / 180.0) {

@@ -94,9 +94,11 @@ class Odometry {
                              RegistrationQuality* quality = nullptr) const;
   // quality: of the registration that placed the frame (its inlier fraction joins the recent ones).
   // A frame becomes a keyframe past keyframe_distance or keyframe_angle_deg from the last one, and
-  // every registered frame does while the model holds fewer than model_keyframes.
+  // every registered frame does while the model holds fewer than model_keyframes. A failed frame
+  // never does, unless an IMU placed it (imu_placed: T is its state's pose, not a guess).
   void accept(const std::shared_ptr<const PointCloud>& frame, const Eigen::Isometry3d& T,
-              std::optional<double> stamp = std::nullopt, bool failed = false, const RegistrationQuality& quality = {});
+              std::optional<double> stamp = std::nullopt, bool failed = false, const RegistrationQuality& quality = {},
+              bool imu_placed = false);
   bool has_model() const { return model_ != nullptr; }
   bool last_failed() const { return last_failed_; }
   const RegistrationQuality& last_quality() const { return last_quality_; }  // of track()'s last frame

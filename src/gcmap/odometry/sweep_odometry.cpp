@@ -229,7 +229,7 @@ SweepEstimate SweepOdometry::track_fused(const std::shared_ptr<PointCloud>& clou
   Eigen::Isometry3d T = odometry_.estimate(*cloud, guess, Odometry::Guess::steady, &e.failed, &e.quality);
   // The scan's pose is taken at its stamp: without point times nothing tells a mean time.
   if (const auto fused = observe_inertial(e, {T, stamp})) T = *fused;
-  odometry_.accept(cloud, T, stamp, e.failed, e.quality);
+  odometry_.accept(cloud, T, stamp, e.failed, e.quality, true);
   reference_ = {T, stamp};
   e.T_world_frame = T;
   return e;
@@ -330,7 +330,7 @@ SweepEstimate SweepOdometry::track_deskewed(const std::shared_ptr<PointCloud>& c
   *cloud = raw;
   m.deskew(*cloud);
   e.deskew_shift = mean_shift(raw, *cloud);
-  odometry_.accept(cloud, T, stamp, e.failed, e.quality);
+  odometry_.accept(cloud, T, stamp, e.failed, e.quality, inertial.has_value());
   reference_ = {T * m.T_stamp(t_mean), stamp + t_mean};
   if (e.failed) {  // placed by the prediction: no velocity measured
     previous_mean_.reset(), before_previous_.reset(), previous_.reset();
