@@ -242,8 +242,8 @@ void Odometry::accept(const std::shared_ptr<const PointCloud>& frame, const Eige
     return;
   }
   // A frame the constant-velocity prediction placed stays out of the model: where the prediction
-  // erred (a handheld sensor's fast turn), the registrations after it took that error on. The
-  // IMU's state places a frame within millimetres: the model keeps moving with it (a canyon).
+  // erred (a handheld sensor's fast turn), the registrations after it took that error on. One the
+  // IMU's state placed joins as any other: the model must move on with it through a canyon.
   if (failed && !imu_placed) return;
   // A model of one sweep is a poor target: its voxels hold a few points each, and a
   // non-repetitive pattern samples other surfaces in the next sweep, so a walker's first frames
