@@ -90,7 +90,7 @@ def test_attribute_errors():
         c.preprocess.downsampel = 1.0
     with pytest.raises(ValueError, match=re.escape("odometry.voxel_resolution must be in [0.01, 100] m, got 0")):
         c.odometry.voxel_resolution = 0.0
-    assert c.odometry.voxel_resolution == 1.0
+    assert c.odometry.voxel_resolution == 0.7
 
 
 def test_yaml_errors_name_the_key():

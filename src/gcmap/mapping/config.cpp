@@ -139,7 +139,9 @@ void visit_calibration(Config& c, Visitor& v) {
 template <typename Config, typename Visitor>
 void visit_odometry_local(Config& c, Visitor& v) {
   v("odometry", "voxel_resolution", c.odometry.voxel_resolution,
-    KeyDoc{"m", 0.01, 100, "odometry/", "Voxel size of the scan-to-model VGICP registration of the odometry."});
+    KeyDoc{"m", 0.01, 100, "odometry/",
+           "Voxel size of the scan-to-model VGICP registration of the odometry; not coarser: sparse scans turning fast (a "
+           "Livox in hand) lose their motion on coarser models."});
   v("odometry", "model_keyframes", c.odometry.model_keyframes,
     KeyDoc{"-", 1, 100, "odometry/",
            "Recent keyframes whose points form the local model each scan is registered to; until it holds this many, every "

@@ -10,7 +10,7 @@ namespace gcmap {
 
 // Each key's meaning, unit and valid range: the config table (mapping/config.cpp), docs/config.md.
 struct OdometryConfig {
-  double voxel_resolution = 1.0;   // scan-to-model VGICP
+  double voxel_resolution = 0.7;   // scan-to-model VGICP
   int model_keyframes = 10;        // recent keyframes in the local model
   double keyframe_distance = 1.0;  // m
   double keyframe_angle_deg = 10.0;
