@@ -10,6 +10,7 @@
 #include "gcmap/core/gaussian_voxel_map.hpp"
 #include "gcmap/core/kdtree.hpp"
 #include "gcmap/core/preprocess.hpp"
+#include "gcmap/odometry/preprocess_scan.hpp"
 #include "gcmap/sim/synthetic.hpp"
 #include "test_util.hpp"
 
@@ -142,6 +143,25 @@ TEST(Covariance, PlaneLikeOnAPlaneAndSafeOnTinyClouds) {
   ASSERT_EQ(tiny.covs.size(), 2u);
   EXPECT_TRUE(tiny.covs[0].allFinite());
   EXPECT_GT(tiny.covs[0].determinant(), 0.f);
+}
+
+// preprocess.plane_epsilon reaches the covariances every registration reads.
+TEST(Covariance, ThePlaneEpsilonOfTheScanPreprocessing) {
+  PointCloud plane;
+  std::mt19937_64 rng(6);
+  std::uniform_real_distribution<float> u(-30.f, 30.f);
+  for (int i = 0; i < 20000; ++i) plane.points.emplace_back(u(rng), u(rng), -1.7f);
+  for (const double epsilon : {1e-3, 1e-5}) {
+    PreprocessConfig config;
+    config.plane_epsilon = epsilon;
+    const PointCloud c = preprocess_scan(plane, config, nullptr);
+    ASSERT_GT(c.size(), 1000u);
+    for (size_t i = 0; i < c.size(); i += 101) {
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> eig(c.covs[i]);
+      EXPECT_NEAR(eig.eigenvalues()[0], epsilon, 0.01 * epsilon) << i;
+      EXPECT_NEAR(std::abs(eig.eigenvectors().col(0).z()), 1.0, 1e-4);
+    }
+  }
 }
 
 // A beam whose elevation is off by d moves its point by range * d along the vertical plane of
