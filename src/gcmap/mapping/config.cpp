@@ -75,8 +75,9 @@ void visit_preprocess(Config& c, Visitor& v) {
   v("preprocess", "plane_epsilon", c.preprocess.plane_epsilon,
     KeyDoc{"-", 1e-6, 1, "odometry/",
            "Each point's covariance is a plane: eigenvalues (this, 1, 1) along its normal and the surface. Smaller weighs the "
-           "distance along the normal more against the distance along the surface; dense, low-noise scans (a 64-beam sensor "
-           "on a vehicle) gain from 1e-5, sparse ones (a Livox in hand) lose."});
+           "distance along the normal more against the distance along the surface: an ideal world of exact planes gains, but "
+           "sparse scans, beams with an elevation bias and a straight road lose (1e-4 loses a highway's motion; "
+           "docs/pipeline.md, \"Point covariances\")."});
   v("preprocess", "elevation_sigma_deg", c.preprocess.elevation_sigma_deg,
     KeyDoc{"deg", 0, 5, "odometry/",
            "Beam elevation uncertainty added to each point's covariance (range times this, in the beam's vertical plane), for a "

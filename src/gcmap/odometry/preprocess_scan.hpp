@@ -16,7 +16,7 @@ struct PreprocessConfig {
   // decides (docs/pipeline.md, "Point covariances").
   int num_neighbors = 20;
   // Plane-like regularization of each covariance: eigenvalues (plane_epsilon, 1, 1). Smaller trusts
-  // the normal more: dense, low-noise scans gain, sparse ones (a Mid-360 in hand) lose.
+  // the normal more: exact planes gain; sparse scans, bent beams and a straight road lose.
   double plane_epsilon = 1e-3;
   // Beam elevation uncertainty added to each point's covariance (range x sigma along the beam's
   // vertical plane): a sensor with a per-beam elevation bias (factory calibration) makes far
