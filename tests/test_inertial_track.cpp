@@ -179,8 +179,10 @@ TEST(InertialTrack, ATranslationTheScanCannotSeeDoesNotPullThePose) {
   const Eigen::Isometry3d measured = se3_exp((Vector6d() << 0.1, 0.2, -0.3, 40.0, -3.0, 1.0).finished());
   const LidarPoseFactor f(0, measured, registration_information(H), T_imu_lidar);
   const auto error = [&](double slide) {
+    Eigen::Isometry3d T_world_lidar = measured * se3_exp((Vector6d() << 1e-3, 0.0, 0.0, 0.0, 0.0, 0.0).finished());
+    T_world_lidar.translation() += measured.linear() * (slide * axis);
     NavState s;
-    s.T_world_imu = measured * se3_exp((Vector6d() << 1e-3, 0.0, 0.0, slide * axis).finished()) * T_imu_lidar.inverse();
+    s.T_world_imu = T_world_lidar * T_imu_lidar.inverse();
     const NavState* states[2] = {&s, nullptr};
     return f.error(states);
   };

@@ -133,13 +133,24 @@ LidarPoseFactor::LidarPoseFactor(int key, const Eigen::Isometry3d& T_world_lidar
   keys_ = {key, -1};
 }
 
+Vector6d pose_difference(const Eigen::Isometry3d& T_measured, const Eigen::Isometry3d& T) {
+  const Eigen::Matrix3d& R = T_measured.linear();
+  return (Vector6d() << so3_log(R.transpose() * T.linear()), R.transpose() * (T.translation() - T_measured.translation()))
+      .finished();
+}
+
 NavLinearization LidarPoseFactor::linearize(const NavState* const* states) const {
-  const Vector6d r = se3_log(T_world_lidar_.inverse() * states[0]->T_world_imu * T_imu_lidar_);
-  // T exp(d) T_imu_lidar = T T_imu_lidar exp(Ad(T_lidar_imu) d).
+  const Eigen::Isometry3d T = states[0]->T_world_imu * T_imu_lidar_;
+  const Vector6d r = pose_difference(T_world_lidar_, T);
+  // T exp(d) T_imu_lidar = T T_imu_lidar exp(Ad(T_lidar_imu) d); the LiDAR's own perturbation
+  // [w, v] turns its rotation by exp(w) and moves it by R v (first order).
+  Matrix6d J = Matrix6d::Zero();
+  J.topLeftCorner<3, 3>() = so3_left_jacobian_inverse(-r.head<3>());
+  J.bottomRightCorner<3, 3>() = T_world_lidar_.linear().transpose() * T.linear();
   NavLinearization out;
   out.r = sqrt_information_ * r;
   out.J[0] = Eigen::MatrixXd::Zero(6, 15);
-  out.J[0].leftCols<6>() = sqrt_information_ * se3_right_jacobian_inverse(r) * adjoint(T_imu_lidar_.inverse());
+  out.J[0].leftCols<6>() = sqrt_information_ * J * adjoint(T_imu_lidar_.inverse());
   return out;
 }
 

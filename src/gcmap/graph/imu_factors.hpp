@@ -82,9 +82,15 @@ class NavPriorFactor : public NavFactor {
   Matrix15d sqrt_information_;
 };
 
-// A LiDAR pose measured (a registration): r = log(T_measured^-1 T_world_imu T_imu_lidar), [rotation,
-// translation], whitened by the square root of its 6x6 information, which may be singular (a
-// translation the scan cannot see): such a direction costs nothing.
+// How far T lies from T_measured: [log(R_measured^T R), R_measured^T (t - t_measured)], the
+// translation apart from the rotation. The SE(3) log would mix them (its translation is V^-1 of
+// this one), so a slide along a direction the measurement leaves free (a tunnel's axis) would
+// reappear, turned by the rotation's error, in the directions it constrains.
+Vector6d pose_difference(const Eigen::Isometry3d& T_measured, const Eigen::Isometry3d& T);
+
+// A LiDAR pose measured (a registration): r = pose_difference(T_measured, T_world_imu T_imu_lidar),
+// [rotation, translation], whitened by the square root of its 6x6 information, which may be singular
+// (a translation the scan cannot see): such a direction costs nothing.
 class LidarPoseFactor : public NavFactor {
  public:
   LidarPoseFactor(int key, const Eigen::Isometry3d& T_world_lidar, const Matrix6d& information,

@@ -117,7 +117,7 @@ double registration_weight(const Window& w, const std::vector<NavState>& states,
   const Eigen::MatrixXd columns = H.ldlt().solve(Eigen::MatrixXd::Identity(H.rows(), H.cols()).middleCols<6>(17));
   const Matrix6d A = adjoint(T_imu_lidar.inverse());  // IMU pose tangent to the LiDAR's
   const Matrix6d P = A * columns.middleRows<6>(17) * A.transpose();
-  const Vector6d r = se3_log(T_world_lidar.inverse() * states[1].T_world_imu * T_imu_lidar);
+  const Vector6d r = pose_difference(T_world_lidar, states[1].T_world_imu * T_imu_lidar);
   // (P + information^-1)^-1 without inverting the information, which may be singular.
   const Matrix6d S_inv = information - information * (P.inverse() + information).ldlt().solve(information);
   const double chi2 = r.dot(S_inv * r);
