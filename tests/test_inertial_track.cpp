@@ -128,6 +128,22 @@ TEST(InertialTrack, FollowsTheOdometrysWanderingTilt) {
   EXPECT_NEAR(*track.last_gravity_turn_deg(), 2.0, 0.5) << "reported";
 }
 
+TEST(InertialTrack, GravityStaysWhereARegistrationLeavesATranslationUnknown) {
+  // A tunnel (nothing along the LiDAR's x) whose registered attitude wanders by 1 deg: gravity is
+  // held, not moved along with the state it was correlated with while it was free.
+  const Rig rig;
+  InertialTrack track = rig.track(5.0, 0, 20, well_constrained());
+  const Eigen::Vector3d held = track.gravity();
+  Matrix6d degenerate = well_constrained();
+  degenerate(3, 3) = 1e-6;
+  for (int k = 21; k <= 40; ++k) {
+    Eigen::Isometry3d T = rig.lidar(0.1 * k);
+    T.linear() = T.linear() * so3_exp(Eigen::Vector3d(0.0, (k - 20) * 0.05 * M_PI / 180.0, 0.0));
+    track.observe(0.1 * k, T, &degenerate);
+  }
+  EXPECT_LT((track.gravity() - held).norm(), 1e-12 * held.norm());
+}
+
 TEST(InertialTrack, StartsAgainAfterAReset) {
   const Rig rig;
   InertialTrack track = rig.track(3.0, 0, 10, well_constrained());

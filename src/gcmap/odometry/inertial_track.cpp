@@ -78,6 +78,17 @@ struct Window {
     return nav_error(factors, states) + r.dot(prior_information * r);
   }
   void system(const std::vector<NavState>& states, const Eigen::Vector2d& theta, Eigen::MatrixXd& H, Eigen::VectorXd& b) const;
+  // The system a step solves: a held tilt is no unknown (its rows and columns out, which conditions
+  // state 0's prior on it); left in, the prior's correlations would move it with state 0.
+  void step_system(const std::vector<NavState>& states, const Eigen::Vector2d& theta, Eigen::MatrixXd& H,
+                   Eigen::VectorXd& b) const {
+    system(states, theta, H, b);
+    if (tilt_free) return;
+    H.topRows<2>().setZero();
+    H.leftCols<2>().setZero();
+    H.topLeftCorner<2, 2>().setIdentity();
+    b.head<2>().setZero();
+  }
 };
 
 void Window::system(const std::vector<NavState>& states, const Eigen::Vector2d& theta, Eigen::MatrixXd& H,
@@ -112,7 +123,7 @@ double registration_weight(const Window& w, const std::vector<NavState>& states,
                            const Matrix6d& information, const Eigen::Isometry3d& T_imu_lidar) {
   Eigen::MatrixXd H;
   Eigen::VectorXd b;
-  w.system(states, Eigen::Vector2d::Zero(), H, b);
+  w.step_system(states, Eigen::Vector2d::Zero(), H, b);
   // The covariance of state 1's pose (after the tilt (2) and state 0 (15)): its six columns only.
   const Eigen::MatrixXd columns = H.ldlt().solve(Eigen::MatrixXd::Identity(H.rows(), H.cols()).middleCols<6>(17));
   const Matrix6d A = adjoint(T_imu_lidar.inverse());  // IMU pose tangent to the LiDAR's
@@ -129,7 +140,7 @@ void optimize(const Window& w, std::vector<NavState>& states, Eigen::Vector2d& t
   std::vector<NavState> moved(2);
   Eigen::Vector2d moved_theta;
   dense_levenberg_marquardt(
-      w.error(states, theta), max_iterations, [&](Eigen::MatrixXd& H, Eigen::VectorXd& b) { w.system(states, theta, H, b); },
+      w.error(states, theta), max_iterations, [&](Eigen::MatrixXd& H, Eigen::VectorXd& b) { w.step_system(states, theta, H, b); },
       [&](const Eigen::VectorXd& d) {
         moved = {states[0].retract(d.segment<15>(2)), states[1].retract(d.tail<15>())};
         moved_theta = theta + d.head<2>();
