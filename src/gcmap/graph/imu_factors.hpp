@@ -85,7 +85,7 @@ class NavPriorFactor : public NavFactor {
 // How far T lies from T_measured: [log(R_measured^T R), R_measured^T (t - t_measured)], the
 // translation apart from the rotation. The SE(3) log would mix them (its translation is V^-1 of
 // this one), so a slide along a direction the measurement leaves free (a tunnel's axis) would
-// reappear, turned by the rotation's error, in the directions it constrains.
+// reappear, turned by half the rotation's error, in the directions it constrains.
 Vector6d pose_difference(const Eigen::Isometry3d& T_measured, const Eigen::Isometry3d& T);
 
 // A LiDAR pose measured (a registration): r = pose_difference(T_measured, T_world_imu T_imu_lidar),
