@@ -148,14 +148,20 @@ double relative_difference(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
 }
 
 TEST_F(GpuParity, LinearizationTrialErrorsAndOverlapMatchTheCpu) {
-  // Every ordered pair at random poses near the reference (0.05 rad, 0.5 m).
+  // Every ordered pair at random poses near the reference (0.05 rad, 0.5 m); half of them with a
+  // robust width, in the same batch.
   std::mt19937_64 rng(11);
   Values values;
   for (int k = 0; k < 5; ++k) values[k] = reference.poses[k] * test::random_pose(rng, 0.05, 0.5);
   FactorGraph graph;
-  for (int j = 0; j < 5; ++j)
-    for (int i = 0; i < 5; ++i)
-      if (i != j) graph.add(std::make_shared<MatchingCostFactor>(j, i, nodes[j].cloud, nodes[i].voxels));
+  for (int j = 0; j < 5; ++j) {
+    for (int i = 0; i < 5; ++i) {
+      if (i == j) continue;
+      auto f = std::make_shared<MatchingCostFactor>(j, i, nodes[j].cloud, nodes[i].voxels);
+      f->set_robust_width((i + j) % 2 ? 0.25f : 0.f);
+      graph.add(std::move(f));
+    }
+  }
   std::vector<Factor*> factors;
   std::vector<FactorPoses> poses;
   for (const auto& f : graph.factors) {

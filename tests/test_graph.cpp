@@ -7,6 +7,7 @@
 #include "gcmap/graph/matching_graph.hpp"
 #include "gcmap/io/point_cloud_io.hpp"
 #include "gcmap/io/trajectory_io.hpp"
+#include "gcmap/registration/vgicp.hpp"
 #include "gcmap/sim/synthetic.hpp"
 #include "test_util.hpp"
 
@@ -70,6 +71,29 @@ TEST(MatchingCostFactor, KeptAssociationsGiveTheSameTrialErrors) {
       MatchingCostFactor(1, 0, src, target.voxels).linearize(at, fresh);
       EXPECT_NE(kept.trial_error(at), fresh.error);
     }
+  }
+}
+
+// A robust width weighs a factor's linearization and its trials alike (both association kinds), and
+// its cost is Cauchy's: below the plain one, which a factor without the width keeps.
+TEST(MatchingCostFactor, ARobustWidthWeighsTheLinearizationAndTheTrialsAlike) {
+  std::mt19937_64 rng(19);
+  const auto [T_truth, src, target] = scene_pair(rng, 73, 74);
+  const Eigen::Isometry3d T0 = Eigen::Isometry3d::Identity();
+  const Eigen::Isometry3d T_lin = T_truth * test::random_pose(rng, 0.02, 0.05);
+  const Eigen::Isometry3d* at_lin[2] = {&T_lin, &T0};
+  MatchingCostFactor plain(1, 0, src, target.voxels);
+  FactorLinearization p;
+  plain.linearize(at_lin, p);
+  for (const TrialVoxels trials : {TrialVoxels::look_up, TrialVoxels::kept}) {
+    MatchingCostFactor f(1, 0, src, target.voxels, trials);
+    f.set_robust_width(0.25f);
+    FactorLinearization lin;
+    f.linearize(at_lin, lin);
+    EXPECT_NEAR(f.trial_error(at_lin), lin.error, 1e-9 * lin.error);
+    EXPECT_NEAR(lin.error, evaluate_vgicp(*src, *target.voxels, T_lin, T_lin, 0.25f).error, 1e-9 * lin.error);
+    EXPECT_LT(lin.error, 0.9 * p.error);
+    EXPECT_LT(lin.H.norm(), 0.9 * p.H.norm());
   }
 }
 

@@ -1,5 +1,6 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <cmath>
 #include <fstream>
 #include <sstream>
 
@@ -61,15 +62,18 @@ Eigen::Vector3d residual(const Scene& s, const FrozenTerms& f, size_t n, const E
   return s.voxels.mean(f.voxels[n]).cast<double>() - (Tj.inverse() * Ti) * s.source.points[f.points[n]].cast<double>();
 }
 
-TEST(Vgicp, BlocksMatchNumericDifferentiation) {
+// The blocks against numeric Jacobians of the residuals with association and Omega frozen; with a
+// robust width c, each point weighted by c^2 / (c^2 + m2) and its cost c^2 log(1 + m2 / c^2).
+void expect_blocks_match_numeric_differentiation(float robust_width) {
   std::mt19937_64 rng(21);
+  const double c2 = double(robust_width) * robust_width;
   for (int trial = 0; trial < 3; ++trial) {
     const Eigen::Isometry3d Tj = test::random_pose(rng, 0.5, 3.0);
     const Eigen::Isometry3d T_true = test::random_pose(rng, 0.05, 0.3);
     const Scene s = make_scene(T_true);
     // Linearize near (not at) the true alignment so residuals are non-trivial.
     const Eigen::Isometry3d Ti_lin = Tj * T_true * se3_exp((Vector6d() << 0.01, -0.02, 0.01, 0.1, 0.05, -0.1).finished());
-    const VgicpLinearization lin = linearize_vgicp(s.source, s.voxels, Tj.inverse() * Ti_lin);
+    const VgicpLinearization lin = linearize_vgicp(s.source, s.voxels, Tj.inverse() * Ti_lin, robust_width);
     const FrozenTerms f = freeze(s, Tj.inverse() * Ti_lin);
     ASSERT_EQ(f.points.size(), lin.num_inliers);
 
@@ -86,9 +90,11 @@ TEST(Vgicp, BlocksMatchNumericDifferentiation) {
         J.col(6 + k) = (residual(s, f, n, Ti_lin, Tj * se3_exp(d)) - residual(s, f, n, Ti_lin, Tj * se3_exp(-d))) / (2 * h);
       }
       const Eigen::Vector3d e = residual(s, f, n, Ti_lin, Tj);
-      H += J.transpose() * f.omegas[n] * J;
-      b += J.transpose() * f.omegas[n] * e;
-      error += e.dot(f.omegas[n] * e);
+      const double m2 = e.dot(f.omegas[n] * e);
+      const double w = c2 > 0.0 ? c2 / (c2 + m2) : 1.0;
+      H += w * J.transpose() * f.omegas[n] * J;
+      b += w * J.transpose() * f.omegas[n] * e;
+      error += c2 > 0.0 ? c2 * std::log1p(m2 / c2) : m2;
     }
     const double scale = H.norm();
     EXPECT_LT((lin.H_ii - H.topLeftCorner<6, 6>()).norm() / scale, 1e-4);
@@ -99,6 +105,10 @@ TEST(Vgicp, BlocksMatchNumericDifferentiation) {
     EXPECT_NEAR(lin.error, error, 1e-4 * error);
   }
 }
+
+TEST(Vgicp, BlocksMatchNumericDifferentiation) { expect_blocks_match_numeric_differentiation(0.f); }
+
+TEST(Vgicp, RobustBlocksMatchNumericDifferentiation) { expect_blocks_match_numeric_differentiation(0.25f); }
 
 TEST(Vgicp, GradientOfErrorIsTwiceB) {
   // With source covariances zeroed and one voxel covering everything, association and Omega do
@@ -115,15 +125,18 @@ TEST(Vgicp, GradientOfErrorIsTwiceB) {
   s.voxels.insert(s.target);
   s.voxels.finalize();
   const Eigen::Isometry3d T = shift * se3_exp((Vector6d() << 0.02, 0.01, -0.03, 0.2, -0.1, 0.05).finished()) * shift.inverse();
-  const VgicpLinearization lin = linearize_vgicp(s.source, s.voxels, T);
-  const double h = 1e-3;  // the error is computed in float: keep the step well above its noise
-  for (int k = 0; k < 6; ++k) {
-    Vector6d d = Vector6d::Zero();
-    d[k] = h;
-    const double g =
-        (evaluate_vgicp(s.source, s.voxels, T * se3_exp(d)).error - evaluate_vgicp(s.source, s.voxels, T * se3_exp(-d)).error) /
-        (2 * h);
-    EXPECT_NEAR(g, 2.0 * lin.b_i[k], 5e-3 * lin.b_i.norm()) << "axis " << k;
+  // With a robust width, b is half the gradient of Cauchy's cost (the IRLS weight is its derivative).
+  for (const float width : {0.f, 0.5f}) {
+    const VgicpLinearization lin = linearize_vgicp(s.source, s.voxels, T, width);
+    const double h = 1e-3;  // the error is computed in float: keep the step well above its noise
+    for (int k = 0; k < 6; ++k) {
+      Vector6d d = Vector6d::Zero();
+      d[k] = h;
+      const double g = (evaluate_vgicp(s.source, s.voxels, T * se3_exp(d), T * se3_exp(d), width).error -
+                        evaluate_vgicp(s.source, s.voxels, T * se3_exp(-d), T * se3_exp(-d), width).error) /
+                       (2 * h);
+      EXPECT_NEAR(g, 2.0 * lin.b_i[k], 5e-3 * lin.b_i.norm()) << "axis " << k << ", width " << width;
+    }
   }
 }
 

@@ -119,6 +119,7 @@ struct CudaBackend::Impl {
 
   device::Batch batch;
   std::vector<std::pair<const void*, const void*>> batch_pairs;
+  std::vector<float> batch_widths;  // their factors' robust widths
   device::OverlapScratch overlap_scratch;
   std::vector<float> poses;
   std::vector<double> sums;
@@ -193,15 +194,17 @@ struct CudaBackend::Impl {
   // the set of pairs changed.
   void prepare(std::span<Factor* const> factors, std::vector<size_t>& on_device, std::vector<size_t>& on_host) {
     std::vector<std::pair<const void*, const void*>> pairs;
+    std::vector<float> widths;
     for (size_t f = 0; f < factors.size(); ++f) {
       if (const auto* m = dynamic_cast<const MatchingCostFactor*>(factors[f])) {
         on_device.push_back(f);
         pairs.emplace_back(m->source_ptr().get(), m->target_ptr().get());
+        widths.push_back(m->robust_width());
       } else {
         on_host.push_back(f);
       }
     }
-    if (pairs == batch_pairs && batch.num_pairs() == pairs.size()) return;
+    if (pairs == batch_pairs && widths == batch_widths && batch.num_pairs() == pairs.size()) return;
     release_unused();
     std::vector<device::Cloud> sources;
     std::vector<device::VoxelMap> targets;
@@ -210,8 +213,9 @@ struct CudaBackend::Impl {
       sources.push_back(cloud(m->source_ptr()));
       targets.push_back(map(m->target_ptr()));
     }
-    batch.set_pairs(sources, targets);
+    batch.set_pairs(sources, targets, widths);
     batch_pairs = std::move(pairs);
+    batch_widths = std::move(widths);
   }
 
   void upload_poses(std::span<const FactorPoses> factor_poses, const std::vector<size_t>& on_device,
@@ -297,7 +301,7 @@ RegistrationResult CudaBackend::align(const PointCloud& source, const std::share
     r.target_device = upload(*target);
     r.target = target;
   }
-  r.batch.set_pairs({r.source}, {r.target_device});
+  r.batch.set_pairs({r.source}, {r.target_device}, {0.f});
   DeviceVgicpProblem problem{r.batch};
   return gcmap::align(problem, init_T_target_source, config);
 }

@@ -64,6 +64,7 @@ struct PairView {
   uint32_t num_points;
   uint32_t point_offset;  // into voxel_of_point
   VoxelMap target;
+  float c2;  // robust width squared; 0: none
 };
 
 // Rounded like PointTransform (core/gaussian_voxel_map.hpp): no fused multiply-add.
@@ -115,6 +116,18 @@ __device__ __forceinline__ bool fused_information(const float* T, const float* C
   return true;
 }
 
+// With c2 > 0: W scaled by the IRLS weight c2 / (c2 + m2) and Cauchy's cost c2 log(1 + m2 / c2), as
+// registration/gaussian_terms.hpp; else the cost m2.
+__device__ __forceinline__ float robust_cost(const float e[3], float c2, Sym3& W) {
+  const float* w = W.a;
+  const float m2 = e[0] * (w[0] * e[0] + w[1] * e[1] + w[2] * e[2]) + e[1] * (w[1] * e[0] + w[3] * e[1] + w[4] * e[2]) +
+                   e[2] * (w[2] * e[0] + w[4] * e[1] + w[5] * e[2]);
+  if (!(c2 > 0.f)) return m2;
+  const float weight = c2 / (c2 + m2);
+  for (int k = 0; k < 6; ++k) W.a[k] *= weight;
+  return c2 * log1pf(m2 / c2);
+}
+
 struct Sums {
   float v[kSums];
 };
@@ -129,7 +142,7 @@ struct AddSums {
 
 // Adds one point's terms in the target frame: e = mu_v - q, B = [-[q]x, I],
 // H += B^T W B, b += B^T W e (as in registration/gaussian_terms.hpp).
-__device__ __forceinline__ void accumulate(float3 q, float3 e, const Sym3& w, Sums& s) {
+__device__ __forceinline__ void accumulate(float3 q, float3 e, const Sym3& w, float cost, Sums& s) {
   const float W[3][3] = {{w.a[0], w.a[1], w.a[2]}, {w.a[1], w.a[3], w.a[4]}, {w.a[2], w.a[4], w.a[5]}};
   const float Q[3][3] = {{0.f, -q.z, q.y}, {q.z, 0.f, -q.x}, {-q.y, q.x, 0.f}};
   float QW[3][3];
@@ -147,7 +160,7 @@ __device__ __forceinline__ void accumulate(float3 q, float3 e, const Sym3& w, Su
                        W[2][0] * e.x + W[2][1] * e.y + W[2][2] * e.z};
   for (int r = 0; r < 3; ++r) s.v[21 + r] = Q[r][0] * We[0] + Q[r][1] * We[1] + Q[r][2] * We[2];
   for (int r = 0; r < 3; ++r) s.v[24 + r] = We[r];
-  s.v[27] = e.x * We[0] + e.y * We[1] + e.z * We[2];
+  s.v[27] = cost;
   s.v[28] = 1.f;
 }
 
@@ -178,7 +191,9 @@ __global__ void linearize_kernel(const PairView* pairs, const int32_t* block_pai
     Sym3 W;
     if (v >= 0 && fused_information(T, P.covs + 6 * static_cast<size_t>(i), P.target.covs + 6 * static_cast<size_t>(v), W)) {
       const float* mu = P.target.means + 4 * static_cast<size_t>(v);
-      accumulate(q, make_float3(mu[0] - q.x, mu[1] - q.y, mu[2] - q.z), W, s);
+      const float e[3] = {mu[0] - q.x, mu[1] - q.y, mu[2] - q.z};
+      const float cost = robust_cost(e, P.c2, W);
+      accumulate(q, make_float3(e[0], e[1], e[2]), W, cost, s);
     }
   }
   const Sums total = Reduce(scratch).Reduce(s, AddSums());
@@ -223,9 +238,7 @@ __global__ void trial_kernel(const PairView* pairs, const int32_t* block_pair, c
       const float3 q = transform_point(T, p[0], p[1], p[2]);
       const float* mu = P.target.means + 4 * static_cast<size_t>(v);
       const float e[3] = {mu[0] - q.x, mu[1] - q.y, mu[2] - q.z};
-      const float* w = W.a;
-      s.error = e[0] * (w[0] * e[0] + w[1] * e[1] + w[2] * e[2]) + e[1] * (w[1] * e[0] + w[3] * e[1] + w[4] * e[2]) +
-                e[2] * (w[2] * e[0] + w[4] * e[1] + w[5] * e[2]);
+      s.error = robust_cost(e, P.c2, W);
       s.inliers = 1.f;
     }
   }
@@ -497,14 +510,17 @@ void Batch::release() {
   device_bytes_ = 0;
 }
 
-void Batch::set_pairs(const std::vector<Cloud>& sources, const std::vector<VoxelMap>& targets) {
+void Batch::set_pairs(const std::vector<Cloud>& sources, const std::vector<VoxelMap>& targets,
+                      const std::vector<float>& robust_widths) {
   release();
   num_pairs_ = sources.size();
   std::vector<PairView> views(num_pairs_);
   std::vector<int32_t> block_pair;
   std::vector<uint32_t> block_begin, first_block(num_pairs_ + 1, 0);
   for (size_t f = 0; f < num_pairs_; ++f) {
-    views[f] = {sources[f].means, sources[f].covs, sources[f].size, static_cast<uint32_t>(num_points_), targets[f]};
+    const float c = robust_widths[f];
+    views[f] = {sources[f].means, sources[f].covs,      sources[f].size, static_cast<uint32_t>(num_points_),
+                targets[f],       c > 0.f ? c * c : 0.f};
     first_block[f] = static_cast<uint32_t>(block_pair.size());
     for (uint32_t b = 0; b < num_blocks(sources[f].size); ++b) {
       block_pair.push_back(static_cast<int32_t>(f));

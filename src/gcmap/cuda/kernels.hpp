@@ -52,7 +52,9 @@ class Batch {
   Batch& operator=(const Batch&) = delete;
   ~Batch();
 
-  void set_pairs(const std::vector<Cloud>& sources, const std::vector<VoxelMap>& targets);
+  // robust_widths: per pair, MatchingCostFactor::robust_width() (0: none).
+  void set_pairs(const std::vector<Cloud>& sources, const std::vector<VoxelMap>& targets,
+                 const std::vector<float>& robust_widths);
   size_t num_pairs() const { return num_pairs_; }
   size_t num_points() const { return num_points_; }
   size_t device_bytes() const { return device_bytes_; }

@@ -36,10 +36,10 @@ void MatchingCostFactor::linearize(const Eigen::Isometry3d* const* poses, Factor
     else kept_points -= n;
   }
   const bool keep = trial_voxels_ == TrialVoxels::kept || counted_ > 0;
-  to_factor_linearization(
-      conditioned(keep ? linearize_vgicp(*source_, *target_, T_lin_, associations_) : linearize_vgicp(*source_, *target_, T_lin_),
-                  T_lin_),
-      out);
+  to_factor_linearization(conditioned(keep ? linearize_vgicp(*source_, *target_, T_lin_, associations_, robust_width_)
+                                           : linearize_vgicp(*source_, *target_, T_lin_, robust_width_),
+                                      T_lin_),
+                          out);
 }
 
 VgicpLinearization MatchingCostFactor::conditioned(const VgicpLinearization& lin,
@@ -60,8 +60,8 @@ void to_factor_linearization(const VgicpLinearization& lin, FactorLinearization&
 
 double MatchingCostFactor::trial_error(const Eigen::Isometry3d* const* poses) const {
   const Eigen::Isometry3d T = poses[1]->inverse() * *poses[0];
-  if (associations_.size() == source_->size()) return evaluate_vgicp(*source_, *target_, T, associations_).error;
-  return evaluate_vgicp(*source_, *target_, T, T_lin_).error;
+  if (associations_.size() == source_->size()) return evaluate_vgicp(*source_, *target_, T, associations_, robust_width_).error;
+  return evaluate_vgicp(*source_, *target_, T, T_lin_, robust_width_).error;
 }
 
 RelativePoseFactor::RelativePoseFactor(int key_i, int key_j, const Eigen::Isometry3d& measured, const Matrix6d& information,

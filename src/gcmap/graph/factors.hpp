@@ -90,6 +90,11 @@ class MatchingCostFactor : public Factor {
   void set_min_conditioning(double min_conditioning) { min_conditioning_ = min_conditioning; }
   // lin (at T_target_source) after that; for backends that linearize on their own.
   VgicpLinearization conditioned(const VgicpLinearization& lin, const Eigen::Isometry3d& T_target_source) const;
+  // Each point's information weighted by c^2 / (c^2 + m2) (linearize_vgicp, registration/vgicp.hpp);
+  // 0: not weighted. The keyframe graph's and the global graph's factors are (local.robust_width,
+  // global.robust_width).
+  void set_robust_width(float robust_width) { robust_width_ = robust_width; }
+  float robust_width() const { return robust_width_; }
 
   const PointCloud& source() const { return *source_; }
   const GaussianVoxelMap& target() const { return *target_; }
@@ -104,6 +109,7 @@ class MatchingCostFactor : public Factor {
   std::vector<int> associations_;  // kept: each source point's voxel at T_lin_
   long counted_ = 0;               // kept_per_optimization: points of associations_ under the cap
   double min_conditioning_ = 0.0;
+  float robust_width_ = 0.f;
 };
 
 // SE(3) constraint T_i^-1 T_j ~ measured, error = log(measured^-1 T_i^-1 T_j) whitened by a 6x6

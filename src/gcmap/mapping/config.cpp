@@ -202,6 +202,11 @@ void visit_odometry_local(Config& c, Visitor& v) {
     KeyDoc{"-", 1, 1000, "mapping/", "Levenberg-Marquardt iterations of a submap's keyframe optimization, at most."});
   v("local", "relative_error_tol", c.local.relative_error_tol,
     KeyDoc{"-", 0, 1, "mapping/", "The submap's optimization stops once a step lowers the error by less than this fraction."});
+  v("local", "robust_width", c.local.robust_width,
+    KeyDoc{"-", 0, 100, "mapping/",
+           "> 0: each point of an in-submap matching cost counts c^2 / (c^2 + m^2) times, m its Mahalanobis distance to its "
+           "voxel (Cauchy's cost): points many sigmas off (a thin object seen from its other side, a voxel holding two "
+           "surfaces) pull less. 0: every point counts fully."});
   v("local", "gyro_weight", c.local.gyro_weight,
     KeyDoc{"-", 0, 1e6, "mapping/",
            "With an IMU, the gyro's rotation between consecutive keyframes is a factor of their submap, weighted this many times "
@@ -264,6 +269,10 @@ void visit_global(Config& c, Visitor& v) {
            "over largest eigenvalue of its Hessian's translation block, rotation marginalized: a tunnel, a corridor) is blind "
            "along it: what such a cost tells along a tunnel is noise, and a graph of them moved tunnels' submaps by metres; "
            "there the submaps stay where the odometry put them. 0: off."});
+  v("global", "robust_width", c.global.robust_width,
+    KeyDoc{"-", 0, 100, "mapping/",
+           "> 0: each point of a global matching cost counts c^2 / (c^2 + m^2), m its Mahalanobis distance to its voxel "
+           "(Cauchy's cost; see local.robust_width). 0: every point counts fully."});
   v("global", "factor_source_points", c.global.factor_source_points,
     KeyDoc{"-", 1000, 10000000, "mapping/",
            "Points of a submap used as the source of its matching-cost factors and overlaps (an even subsample; the target voxel "

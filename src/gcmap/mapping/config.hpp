@@ -43,6 +43,8 @@ struct LocalMappingConfig {
   int factor_source_points = 0;  // > 0: keyframe points used as the source of in-submap factors (0: all)
   int max_iterations = 20;
   double relative_error_tol = 1e-4;  // LM stops once a step gains less than this fraction
+  // > 0: the in-submap matching costs weight each point by c^2 / (c^2 + m2) (MatchingCostFactor).
+  double robust_width = 0.0;
   // The gyro's rotation between consecutive keyframes counts this many times what its noise gives
   // it: the matching costs count every point as independent (docs/pipeline.md).
   double gyro_weight = 10.0;
@@ -79,6 +81,8 @@ struct GlobalMappingConfig {
   // A matching-cost factor held along one translation by less than this fraction of the best is
   // blind along it (0: off).
   double min_conditioning = 0.03;
+  // > 0: the matching costs weight each point by c^2 / (c^2 + m2) (MatchingCostFactor).
+  double robust_width = 0.0;
 };
 
 // Localization on a prior map (gcmap localize).

@@ -350,6 +350,7 @@ int GlobalMapper::connect_overlapping(int id, int first) {
       auto f =
           std::make_shared<MatchingCostFactor>(id, j, cur.factor_source, submaps_[j].voxels, TrialVoxels::kept_per_optimization);
       f->set_min_conditioning(config_.min_conditioning);
+      f->set_robust_width(static_cast<float>(config_.robust_width));
       add_factor({FactorKind::matching_cost, id, j, t.overlap, std::move(f)});
     }
   }

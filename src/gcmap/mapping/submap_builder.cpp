@@ -133,6 +133,7 @@ std::vector<Eigen::Isometry3d> SubmapBuilder::optimize_keyframes(const Eigen::Is
                         : open_[b].cloud;
       for (int a = 0; a < b; ++a) {
         auto f = std::make_shared<MatchingCostFactor>(b, a, source, open_[a].voxels, TrialVoxels::kept);
+        f->set_robust_width(static_cast<float>(config_.robust_width));
         if (a == b - 1) consecutive.push_back(f);
         g.add(std::move(f));
       }

@@ -11,6 +11,8 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
 
+#include <cmath>
+
 #include "gcmap/core/gaussian_voxel_map.hpp"
 #include "gcmap/core/point_cloud.hpp"
 #include "gcmap/registration/vgicp.hpp"
@@ -69,15 +71,24 @@ inline Lanes load(const float* p) {
   return v;
 }
 
-// kLanes points of a batch: residual e, Omega (upper triangle) and which lanes count.
+// kLanes points of a batch: residual e, Omega (upper triangle) and which lanes count; with a robust
+// width, each point's cost too.
 struct LaneTerms {
   Lanes q[3], e[3], W[6];
+  Lanes cost;
   LaneMask valid;
 };
 
+inline Lanes squared_mahalanobis(const Lanes (&W)[6], const Lanes (&e)[3]) {
+  return W[0] * e[0] * e[0] + W[3] * e[1] * e[1] + W[5] * e[2] * e[2] +
+         2.f * (W[1] * e[0] * e[1] + W[2] * e[0] * e[2] + W[4] * e[1] * e[2]);
+}
+
 // Omega = (C_target + R C_source R^T)^-1 by cofactors; lanes whose determinant is not above 1e-12
-// get Omega = 0 (as Eigen's invertibility check did for the scalar code this replaced).
-inline void lane_terms(const Gathered& g, int group, const float (&R)[3][3], LaneTerms& t) {
+// get Omega = 0 (as Eigen's invertibility check did for the scalar code this replaced). With a
+// robust width c (c2 = c^2 > 0) the cost is Cauchy's, c2 log(1 + m2 / c2) with m2 = e^T Omega e,
+// and Omega is scaled by its IRLS weight c2 / (c2 + m2): b stays half the cost's gradient.
+inline void lane_terms(const Gathered& g, int group, const float (&R)[3][3], float c2, LaneTerms& t) {
   const int o = group * kLanes;
   Lanes C[6], S[6];
   for (int s = 0; s < 6; ++s) C[s] = load(g.source[s] + o);
@@ -105,6 +116,14 @@ inline void lane_terms(const Gathered& g, int group, const float (&R)[3][3], Lan
   t.W[3] = (a00 * a22 - a02 * a02) * inv;
   t.W[4] = (a01 * a02 - a00 * a12) * inv;
   t.W[5] = (a00 * a11 - a01 * a01) * inv;
+  if (c2 > 0.f) {
+    const Lanes m2 = squared_mahalanobis(t.W, t.e);
+    const Lanes w = c2 / (c2 + m2);
+    for (int s = 0; s < 6; ++s) t.W[s] *= w;
+    for (int l = 0; l < kLanes; ++l) t.cost[l] = c2 * std::log1p(m2[l] / c2);
+  } else {
+    t.cost = zero;  // unread
+  }
 }
 
 inline double horizontal_sum(const Lanes& v) {
@@ -137,7 +156,7 @@ inline void rotation_rows(const PointTransform& X, float (&R)[3][3]) {
 // kLanes associated points; body adds the groups' errors to err, which is summed in double per
 // batch. Returns that sum.
 template <class Gather, class Body>
-inline double for_each_lane_group(size_t begin, size_t end, Gather gather, const float (&R)[3][3], Body body) {
+inline double for_each_lane_group(size_t begin, size_t end, Gather gather, const float (&R)[3][3], float c2, Body body) {
   Gathered g;
   double error = 0.0;
   const auto run = [&] {
@@ -145,7 +164,7 @@ inline double for_each_lane_group(size_t begin, size_t end, Gather gather, const
     Lanes err = {};
     for (int k = 0; k < groups; ++k) {
       LaneTerms t;
-      lane_terms(g, k, R, t);
+      lane_terms(g, k, R, c2, t);
       body(t, err);
     }
     error += horizontal_sum(err);
@@ -159,10 +178,11 @@ inline double for_each_lane_group(size_t begin, size_t end, Gather gather, const
   return error;
 }
 
-// associate(i, q) -> target element of source point i (transformed to q), or -1.
+// associate(i, q) -> target element of source point i (transformed to q), or -1; c2: the robust
+// width squared (0: none).
 template <class Target, class Associate>
 TargetFrameSums accumulate_target_frame(const PointCloud& source, const Target& target, const Eigen::Isometry3d& T,
-                                        Associate associate) {
+                                        Associate associate, float c2 = 0.f) {
   const PointTransform X(T);
   float R[3][3];
   rotation_rows(X, R);
@@ -178,7 +198,7 @@ TargetFrameSums accumulate_target_frame(const PointCloud& source, const Target& 
           const Lanes &qx = t.q[0], &qy = t.q[1], &qz = t.q[2];
           const Lanes We[3] = {W[0] * t.e[0] + W[1] * t.e[1] + W[2] * t.e[2], W[1] * t.e[0] + W[3] * t.e[1] + W[4] * t.e[2],
                                W[2] * t.e[0] + W[4] * t.e[1] + W[5] * t.e[2]};
-          err += t.e[0] * We[0] + t.e[1] * We[1] + t.e[2] * We[2];
+          err += c2 > 0.f ? t.cost : t.e[0] * We[0] + t.e[1] * We[1] + t.e[2] * We[2];
           // QW, row by row (W symmetric).
           Lanes QW[3][3];
           for (int c = 0; c < 3; ++c) {
@@ -199,7 +219,7 @@ TargetFrameSums accumulate_target_frame(const PointCloud& source, const Target& 
           for (int a = 0; a < 3; ++a) bt[a] += We[a];
           inliers += count(t.valid);
         };
-        const double error = for_each_lane_group(r.begin(), r.end(), gatherer(source, target, X, associate), R, add_terms);
+        const double error = for_each_lane_group(r.begin(), r.end(), gatherer(source, target, X, associate), R, c2, add_terms);
         for (int a = 0; a < 3; ++a) {
           for (int c = 0; c < 3; ++c) {
             const double rt = horizontal_sum(Hrt[a * 3 + c]);
@@ -230,7 +250,8 @@ TargetFrameSums accumulate_target_frame(const PointCloud& source, const Target& 
 }
 
 template <class Target, class Associate>
-VgicpError sum_errors(const PointCloud& source, const Target& target, const Eigen::Isometry3d& T, Associate associate) {
+VgicpError sum_errors(const PointCloud& source, const Target& target, const Eigen::Isometry3d& T, Associate associate,
+                      float c2 = 0.f) {
   const PointTransform X(T);
   float R[3][3];
   rotation_rows(X, R);
@@ -239,13 +260,10 @@ VgicpError sum_errors(const PointCloud& source, const Target& target, const Eige
       tbb::blocked_range<size_t>(0, source.size(), kGrain), Pair{0.0, 0},
       [&](const tbb::blocked_range<size_t>& r, Pair acc) {
         const auto add_error = [&](const LaneTerms& t, Lanes& err) {
-          const Lanes(&W)[6] = t.W;
-          const Lanes(&e)[3] = t.e;
-          err += W[0] * e[0] * e[0] + W[3] * e[1] * e[1] + W[5] * e[2] * e[2] +
-                 2.f * (W[1] * e[0] * e[1] + W[2] * e[0] * e[2] + W[4] * e[1] * e[2]);
+          err += c2 > 0.f ? t.cost : squared_mahalanobis(t.W, t.e);
           acc.second += count(t.valid);
         };
-        acc.first += for_each_lane_group(r.begin(), r.end(), gatherer(source, target, X, associate), R, add_error);
+        acc.first += for_each_lane_group(r.begin(), r.end(), gatherer(source, target, X, associate), R, c2, add_error);
         return acc;
       },
       [](Pair a, const Pair& b) {

@@ -34,27 +34,34 @@ bool drop_weak_translation(TargetFrameSums& sums, double min_conditioning) {
   return true;
 }
 
+namespace {
+float squared(float robust_width) { return robust_width > 0.f ? robust_width * robust_width : 0.f; }
+}  // namespace
+
 VgicpLinearization linearize_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
-                                   const Eigen::Isometry3d& T_target_source) {
+                                   const Eigen::Isometry3d& T_target_source, float robust_width) {
   const TargetFrameSums sums = detail::accumulate_target_frame(
-      source, target, T_target_source, [&](size_t, const Eigen::Vector3f& q) { return target.lookup(q); });
+      source, target, T_target_source, [&](size_t, const Eigen::Vector3f& q) { return target.lookup(q); }, squared(robust_width));
   return expand_to_both_poses(sums, T_target_source);
 }
 
 VgicpLinearization linearize_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
-                                   const Eigen::Isometry3d& T_target_source, std::vector<int>& associations) {
+                                   const Eigen::Isometry3d& T_target_source, std::vector<int>& associations, float robust_width) {
   associations.resize(source.size());
-  const TargetFrameSums sums =
-      detail::accumulate_target_frame(source, target, T_target_source, [&](size_t i, const Eigen::Vector3f& q) {
+  const TargetFrameSums sums = detail::accumulate_target_frame(
+      source, target, T_target_source,
+      [&](size_t i, const Eigen::Vector3f& q) {
         return associations[i] = target.lookup(q);  // distinct i per task
-      });
+      },
+      squared(robust_width));
   return expand_to_both_poses(sums, T_target_source);
 }
 
 VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& T_target_source,
-                          std::span<const int> associations) {
+                          std::span<const int> associations, float robust_width) {
   if (associations.size() != source.size()) throw Error("evaluate_vgicp: associations do not match the source");
-  return detail::sum_errors(source, target, T_target_source, [&](size_t i, const Eigen::Vector3f&) { return associations[i]; });
+  return detail::sum_errors(
+      source, target, T_target_source, [&](size_t i, const Eigen::Vector3f&) { return associations[i]; }, squared(robust_width));
 }
 
 VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& T_target_source) {
@@ -62,10 +69,11 @@ VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& targ
 }
 
 VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& T_target_source,
-                          const Eigen::Isometry3d& T_association) {
+                          const Eigen::Isometry3d& T_association, float robust_width) {
   const PointTransform A(T_association);
-  return detail::sum_errors(source, target, T_target_source,
-                            [&](size_t i, const Eigen::Vector3f&) { return target.lookup(A * source.points[i]); });
+  return detail::sum_errors(
+      source, target, T_target_source, [&](size_t i, const Eigen::Vector3f&) { return target.lookup(A * source.points[i]); },
+      squared(robust_width));
 }
 
 }  // namespace gcmap

@@ -30,23 +30,27 @@ struct VgicpError {
 
 // Data association (voxel lookup) and Omega are recomputed from T_target_source on every call.
 // Parallel over points with a deterministic reduction: the same result for any thread count.
+// robust_width c > 0 weights each point's Omega by c^2 / (c^2 + m2), m2 = e^T Omega e its squared
+// Mahalanobis distance (a Cauchy-like IRLS weight, taken at the pose given): points many sigmas off
+// their voxel (a thin object seen from its other side, a voxel holding two surfaces) pull less.
 VgicpLinearization linearize_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
-                                   const Eigen::Isometry3d& T_target_source);
+                                   const Eigen::Isometry3d& T_target_source, float robust_width = 0.f);
 VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& T_target_source);
 
 // Error at T_target_source with each point associated to the voxel it falls in under T_association
 // (the linearization point). LM judges trial steps with this: re-associating at a trial pose adds
 // newly matched points to the sum, so a better alignment can show a larger error and LM would stall.
 VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& T_target_source,
-                          const Eigen::Isometry3d& T_association);
+                          const Eigen::Isometry3d& T_association, float robust_width = 0.f);
 
 // The same pair for a caller that can keep 4 bytes per source point (one registration; the global
 // graph's thousands of factors cannot): the linearization records each point's voxel (-1: none),
 // and the evaluation reuses it instead of transforming and looking up again. Same results.
 VgicpLinearization linearize_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
-                                   const Eigen::Isometry3d& T_target_source, std::vector<int>& associations);
+                                   const Eigen::Isometry3d& T_target_source, std::vector<int>& associations,
+                                   float robust_width = 0.f);
 VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& T_target_source,
-                          std::span<const int> associations);
+                          std::span<const int> associations, float robust_width = 0.f);
 
 // The accumulation is done in the target frame (B = de/dd_j = [-[q]x, I]); the source blocks follow
 // exactly from A = -B Ad(T_target_source), so a binary factor costs no more than a unary one.

@@ -139,6 +139,7 @@ std::shared_ptr<MatchingCostFactor> matching_cost(int source, int target, const 
                                                   const GlobalMappingConfig& config) {
   auto f = std::make_shared<MatchingCostFactor>(source, target, s.factor_source, t.voxels, TrialVoxels::kept_per_optimization);
   f->set_min_conditioning(config.min_conditioning);
+  f->set_robust_width(static_cast<float>(config.robust_width));
   return f;
 }
 
