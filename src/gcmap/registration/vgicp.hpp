@@ -30,9 +30,10 @@ struct VgicpError {
 
 // Data association (voxel lookup) and Omega are recomputed from T_target_source on every call.
 // Parallel over points with a deterministic reduction: the same result for any thread count.
-// robust_width c > 0 weights each point's Omega by c^2 / (c^2 + m2), m2 = e^T Omega e its squared
-// Mahalanobis distance (a Cauchy-like IRLS weight, taken at the pose given): points many sigmas off
-// their voxel (a thin object seen from its other side, a voxel holding two surfaces) pull less.
+// robust_width c > 0: each point's cost is Cauchy's, c^2 log(1 + m2 / c^2) with m2 = e^T Omega e its
+// squared Mahalanobis distance, linearized with Omega weighted by c^2 / (c^2 + m2) (IRLS); errors are
+// that cost. Points many sigmas off their voxel (a thin object seen from its other side, a voxel
+// holding two surfaces) pull less.
 VgicpLinearization linearize_vgicp(const PointCloud& source, const GaussianVoxelMap& target,
                                    const Eigen::Isometry3d& T_target_source, float robust_width = 0.f);
 VgicpError evaluate_vgicp(const PointCloud& source, const GaussianVoxelMap& target, const Eigen::Isometry3d& T_target_source);
