@@ -55,6 +55,28 @@ struct Corridor {
   }
 };
 
+// global.robust_width reaches every matching cost, and the errors reported for graph.json are the
+// costs the factors optimized (Cauchy's), not the plain squares.
+TEST(GlobalMapper, ARobustWidthReachesTheFactorsAndTheirReportedErrors) {
+  const Corridor corridor(4);
+  GlobalMappingConfig config;
+  config.robust_width = 0.25;
+  const GlobalMapper mapper = map_all(corridor.submaps, config);
+  const std::vector<FactorEvaluation> evaluation = mapper.evaluate_factors();
+  int checked = 0;
+  for (size_t f = 0; f < mapper.factors().size(); ++f) {
+    auto* m = dynamic_cast<MatchingCostFactor*>(mapper.factors()[f].factor.get());
+    if (!m) continue;
+    EXPECT_EQ(m->robust_width(), 0.25f);
+    const Eigen::Isometry3d* poses[2] = {&mapper.pose(m->keys()[0]), &mapper.pose(m->keys()[1])};
+    FactorLinearization lin;
+    m->linearize(poses, lin);
+    EXPECT_NEAR(evaluation[f].error, lin.error, 1e-9 * lin.error) << f;
+    ++checked;
+  }
+  EXPECT_GE(checked, 3);
+}
+
 TEST(GlobalMapper, StrongestOverlapsAreThoseOverlappingMostAndThePredecessor) {
   const std::vector<int> submaps = {3, 5, 6, 8, 9};
   const std::vector<TargetOverlap> kept = {{0, 0.4}, {1, 0.1}, {2, 0.3}, {4, 0.05}};  // submap 8 below th_min

@@ -377,7 +377,8 @@ std::vector<FactorEvaluation> GlobalMapper::evaluate_factors() const {
     const Factor& factor = *factors_[f].factor;
     const Eigen::Isometry3d* poses[2] = {&values_.at(factor.keys()[0]), &values_.at(factor.keys()[1])};
     if (const auto* m = dynamic_cast<const MatchingCostFactor*>(&factor)) {
-      out[f].error = evaluate_vgicp(m->source(), m->target(), poses[1]->inverse() * *poses[0]).error;
+      const Eigen::Isometry3d T = poses[1]->inverse() * *poses[0];
+      out[f].error = evaluate_vgicp(m->source(), m->target(), T, T, m->robust_width()).error;  // the cost optimized
     } else if (const auto* r = dynamic_cast<const RelativePoseFactor*>(&factor)) {
       RelativePoseFactor copy = *r;  // linearize() records the robust weight in the factor
       FactorLinearization lin;
